@@ -1,0 +1,5 @@
+"""``python -m gyrotherm`` runs the command-line interface."""
+
+from gyrotherm.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,56 @@
+"""Shared CLI helpers: progress output, run loading, estimator options."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+
+from gyrotherm.codecs import Run, read_run
+from gyrotherm.estimators import EstimatorConfig
+
+
+def progress(label: str, *, quiet: bool = False) -> Callable[[int, int], None]:
+    """A callback printing ``label: i/n`` on stderr (a single updating line)."""
+
+    def report(done: int, total: int) -> None:
+        if quiet:
+            return
+        end = "\n" if done == total else ""
+        print(f"\r{label}: {done}/{total}", end=end, file=sys.stderr, flush=True)
+
+    return report
+
+
+def load_runs(paths: Sequence[str], *, quiet: bool = False) -> list[Run]:
+    report = progress("reading runs", quiet=quiet)
+    runs = []
+    for i, p in enumerate(paths):
+        runs.append(read_run(p))
+        report(i + 1, len(paths))
+    return runs
+
+
+def add_estimator_options(parser: argparse.ArgumentParser) -> None:
+    d = EstimatorConfig()
+    g = parser.add_argument_group("ΔT estimator (stored in the calibration)")
+    g.add_argument("--tau-s", type=float, default=d.tau_s,
+                   help=f"thermal time constant, s: ΔT = τ·dT/dt (default {d.tau_s:g})")
+    g.add_argument("--temperature-noise-c", type=float, default=d.noise_c,
+                   help=f"sensor noise std, °C (default {d.noise_c:g})")
+    g.add_argument("--temperature-lsb-c", type=float, default=d.quantisation_c,
+                   help=f"sensor resolution, °C (default {d.quantisation_c:g})")
+    g.add_argument("--process-noise", type=float, default=d.process_noise_c2_per_s3,
+                   help=f"jerk spectral density q, °C²/s³ (default {d.process_noise_c2_per_s3:g})")
+    g.add_argument("--update-period-s", type=float, default=d.update_period_s,
+                   help="feed the filter a reading at most this often, s (0 = every row)")
+
+
+def estimator_from_args(args: argparse.Namespace) -> EstimatorConfig:
+    return EstimatorConfig(
+        tau_s=args.tau_s,
+        noise_c=args.temperature_noise_c,
+        quantisation_c=args.temperature_lsb_c,
+        process_noise_c2_per_s3=args.process_noise,
+        update_period_s=args.update_period_s,
+    )

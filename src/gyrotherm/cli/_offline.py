@@ -1,0 +1,170 @@
+"""``gyrotherm sim chamber``, ``gyrotherm fit``, ``gyrotherm evaluate``, ``gyrotherm paper``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from gyrotherm.cli._common import (
+    add_estimator_options,
+    estimator_from_args,
+    load_runs,
+    progress,
+)
+from gyrotherm.cli._tables import coefficient_table, error_table, score_table
+from gyrotherm.codecs import write_run
+from gyrotherm.compensation import (
+    METHODS,
+    MODELS,
+    RunFeatures,
+    default_scaling,
+    features,
+    fit,
+    fit_per_run,
+    leave_one_out,
+    load_calibration,
+    score,
+)
+from gyrotherm.estimators import EstimatorConfig
+from gyrotherm.sim import PAPER_HEATING_MIN, GyroParams, chamber_runs
+
+
+def cmd_sim_chamber(args: argparse.Namespace) -> int:
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    runs = chamber_runs(args.heating_min, seed=args.seed, rate_hz=args.rate_hz,
+                        hold_s=args.hold_s, validation=args.validation,
+                        progress=progress("simulating", quiet=args.quiet))
+    for run in runs:
+        path = write_run(run, out / f"{run.name}.csv")
+        print(f"wrote {path} ({len(run)} rows, {run.duration_s / 3600:.2f} h)")
+    return 0
+
+
+def _features(args: argparse.Namespace, est: EstimatorConfig) -> list[RunFeatures]:
+    runs = load_runs(args.runs, quiet=args.quiet)
+    report = progress("estimating T and ΔT", quiet=args.quiet)
+    out = []
+    for i, run in enumerate(runs):
+        out.append(features(run, est))
+        report(i + 1, len(runs))
+    return out
+
+
+def cmd_fit(args: argparse.Namespace) -> int:
+    est = estimator_from_args(args)
+    feats = _features(args, est)
+    cal = fit(feats, args.model, estimator=est, method=args.method)
+    scaling = default_scaling(feats)
+    per_run = fit_per_run(feats, args.model, estimator=est, scaling=scaling) if len(feats) > 1 \
+        else []
+    for axis in cal.axes:
+        rows = [(f.name, c) for f, c in zip(feats, per_run, strict=True)]
+        rows.append((f"{args.method}", cal))
+        print(coefficient_table(rows, axis))
+        print()
+    cal.save(args.out)
+    print(f"wrote {args.out} (model {args.model}, method {args.method}, axes {','.join(cal.axes)})")
+    if len(feats) > 1 and not args.no_validation:
+        held = leave_one_out(feats, args.model, estimator=est, method=args.method,
+                             progress=progress("leave-one-run-out", quiet=args.quiet))
+        print("\nLeave-one-run-out validation (each run scored by a fit without it):")
+        print(score_table([s for h in held for s in h.scores]))
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    cal = load_calibration(args.calibration)
+    feats = _features(args, cal.estimator)
+    scores = [s for f in feats for s in score(cal, f)]
+    if args.json:
+        json.dump({"calibration": str(args.calibration), "model": cal.model.name,
+                   "scores": [s.to_dict() for s in scores]}, sys.stdout, indent=2)
+        print()
+    else:
+        print(f"calibration {args.calibration}: model {cal.model.name}")
+        print(score_table(scores))
+    return 0
+
+
+def cmd_paper(args: argparse.Namespace) -> int:
+    """Simulate the paper's experiment, fit, and print Table 1- and Table 2-style results."""
+    gyro = GyroParams()
+    est = EstimatorConfig(tau_s=gyro.tau_s)
+    quiet = args.quiet
+    runs = chamber_runs(PAPER_HEATING_MIN, seed=args.seed, rate_hz=args.rate_hz,
+                        progress=progress("simulating heating runs", quiet=quiet))
+    valid = chamber_runs([60], seed=args.seed, rate_hz=args.rate_hz, validation=True)[0]
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        for r in [*runs, valid]:
+            write_run(r, out / f"{r.name}.csv")
+    report = progress("estimating T and ΔT", quiet=quiet)
+    feats = []
+    for i, r in enumerate([*runs, valid]):
+        feats.append(features(r, est))
+        report(i + 1, len(runs) + 1)
+    train, vfeat = feats[:-1], feats[-1]
+    scaling = default_scaling(train)
+    per_run = fit_per_run(train, "paper", estimator=est, scaling=scaling)
+    avg = fit(train, "paper", estimator=est, method="paper-average", scaling=scaling)
+    pooled = fit(train, "paper", estimator=est, method="pooled", scaling=scaling)
+    axis = args.axis
+    rows = [(f"{m:g} min", c) for m, c in zip(PAPER_HEATING_MIN, per_run, strict=True)]
+    rows += [("mean (eq. 12)", avg), ("pooled", pooled)]
+    print(coefficient_table(rows, axis, truth=dict(gyro.bias.coefficients[axis]),
+                            title=f"Table 1 — paper model per heating run, axis {axis} "
+                            "(bias °/s; T, ΔT °C; truth = the simulator's coefficients)"))
+    columns = []
+    for i in (0, 5, 6):
+        t2 = fit([train[i]], "t2", estimator=est, scaling=scaling)
+        columns.append((f"t2 {PAPER_HEATING_MIN[i]:g} min", score(t2, vfeat)))
+    columns.append(("t3 pooled", score(fit(train, "t3", estimator=est, scaling=scaling), vfeat)))
+    columns.append(("paper (eq.12)", score(avg, vfeat)))
+    columns.append(("paper pooled", score(pooled, vfeat)))
+    print()
+    print(error_table(columns, title="Table 2 — validation run (60 min heating), "
+                      "errors after compensation, mean over axes x, y, z"))
+    return 0
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    sim = sub.add_parser("sim", help="simulate the chamber experiment or a gyro on a CAN bus")
+    sim_sub = sim.add_subparsers(dest="sim_command", required=True)
+    ch = sim_sub.add_parser("chamber", help="simulate chamber heating runs into run files")
+    ch.add_argument("--heating-min", type=float, nargs="+", default=list(PAPER_HEATING_MIN),
+                    help="heating times, min (default: the paper's 5 10 20 30 40 50 60)")
+    ch.add_argument("--out", required=True, help="output directory for the run files")
+    ch.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    ch.add_argument("--rate-hz", type=float, default=10.0, help="sample rate, Hz (default 10)")
+    ch.add_argument("--hold-s", type=float, default=3600.0,
+                    help="hold before and after the ramp, s (default 3600)")
+    ch.add_argument("--validation", action="store_true",
+                    help="name runs valid-… and draw seeds apart from fitting runs")
+    ch.set_defaults(func=cmd_sim_chamber)
+
+    f = sub.add_parser("fit", help="fit a bias model to run files and write a calibration")
+    f.add_argument("runs", nargs="+", help="run files (CSV version 1)")
+    f.add_argument("--model", choices=sorted(MODELS), default="paper")
+    f.add_argument("--method", choices=METHODS, default="pooled")
+    f.add_argument("--out", required=True, help="calibration file to write (JSON)")
+    f.add_argument("--no-validation", action="store_true",
+                   help="skip the leave-one-run-out validation")
+    add_estimator_options(f)
+    f.set_defaults(func=cmd_fit)
+
+    e = sub.add_parser("evaluate", help="score a calibration on run files (Table 2 style)")
+    e.add_argument("calibration", help="calibration file (JSON)")
+    e.add_argument("runs", nargs="+", help="run files (CSV version 1)")
+    e.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    e.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser("paper", help="reproduce Tables 1 and 2 on simulated chamber runs")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--rate-hz", type=float, default=10.0)
+    p.add_argument("--axis", choices=("x", "y", "z"), default="x")
+    p.add_argument("--out", help="also write the simulated runs to this directory")
+    p.set_defaults(func=cmd_paper)

@@ -1,0 +1,268 @@
+"""Run files: the CSV (version 1) every gyrotherm tool reads and the simulator writes.
+
+Layout::
+
+    # gyrotherm-run: 1
+    # name: heat-05min            (optional "# key: value" metadata lines)
+    time_s,temperature_c,rate_x_dps,rate_y_dps,rate_z_dps
+
+* ``time_s``: seconds since power-on, strictly increasing.
+* ``temperature_c``: the gyro's internal temperature sensor reading, °C.
+* ``rate_<axis>_dps``: the static gyro's raw output, °/s; at least one axis.
+* optional ``chamber_c`` (ambient, °C) and ``true_bias_<axis>_dps`` (simulation
+  truth: tools read these only to score).
+* unknown columns are ignored.
+
+A malformed file raises :class:`gyrotherm.RunFileError` naming file, line and problem.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from gyrotherm._errors import RunFileError
+
+RUN_FILE_VERSION = 1
+AXES = ("x", "y", "z")
+_MAGIC = "gyrotherm-run"
+
+FloatArray = NDArray[np.float64]
+
+
+def _frozen(a: FloatArray) -> FloatArray:
+    out = np.array(a, dtype=np.float64, copy=True)
+    out.setflags(write=False)
+    return out
+
+
+@dataclass(frozen=True)
+class Run:
+    """One recorded (or simulated) static run of a gyro.
+
+    All arrays share one length and are read-only. ``rates_dps`` maps axis name
+    (``"x"``, ``"y"``, ``"z"``) to raw output in °/s, in axis order.
+    """
+
+    name: str
+    time_s: FloatArray
+    temperature_c: FloatArray
+    rates_dps: Mapping[str, FloatArray]
+    chamber_c: FloatArray | None = None
+    true_bias_dps: Mapping[str, FloatArray] = field(default_factory=dict)
+    metadata: Mapping[str, str] = field(default_factory=dict)
+    source: str = "<memory>"
+    sha256: str = ""
+    extra: Mapping[str, FloatArray] = field(default_factory=dict)
+    """Other numeric columns, by header name (e.g. simulation truth
+    ``true_temperature_c``, ``true_delta_t_c``); tools ignore them except to score."""
+
+    def __post_init__(self) -> None:
+        n = len(self.time_s)
+        object.__setattr__(self, "time_s", _frozen(self.time_s))
+        object.__setattr__(self, "temperature_c", _frozen(self.temperature_c))
+        if not self.rates_dps:
+            raise RunFileError(f"{self.source}: run {self.name!r} has no rate axis")
+        rates = {a: _frozen(self.rates_dps[a]) for a in AXES if a in self.rates_dps}
+        unknown = set(self.rates_dps) - set(AXES)
+        if unknown:
+            raise RunFileError(f"{self.source}: unknown rate axes {sorted(unknown)}")
+        object.__setattr__(self, "rates_dps", rates)
+        truth = {a: _frozen(v) for a, v in self.true_bias_dps.items()}
+        object.__setattr__(self, "true_bias_dps", truth)
+        extra = {k: _frozen(v) for k, v in self.extra.items()}
+        object.__setattr__(self, "extra", extra)
+        if self.chamber_c is not None:
+            object.__setattr__(self, "chamber_c", _frozen(self.chamber_c))
+        others = [self.temperature_c, *rates.values(), *truth.values(), *extra.values()]
+        if self.chamber_c is not None:
+            others.append(self.chamber_c)
+        if any(len(a) != n for a in others):
+            raise RunFileError(f"{self.source}: columns of run {self.name!r} differ in length")
+
+    @property
+    def axes(self) -> tuple[str, ...]:
+        """Axes with a rate column, in x, y, z order."""
+        return tuple(self.rates_dps)
+
+    def __len__(self) -> int:
+        return len(self.time_s)
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.time_s[-1] - self.time_s[0]) if len(self) else 0.0
+
+    def slice(self, start: int, stop: int) -> Run:
+        """Rows ``start:stop`` as a new run (same name and metadata)."""
+        return Run(
+            name=self.name,
+            time_s=self.time_s[start:stop],
+            temperature_c=self.temperature_c[start:stop],
+            rates_dps={a: v[start:stop] for a, v in self.rates_dps.items()},
+            chamber_c=None if self.chamber_c is None else self.chamber_c[start:stop],
+            true_bias_dps={a: v[start:stop] for a, v in self.true_bias_dps.items()},
+            metadata=self.metadata,
+            source=self.source,
+            sha256=self.sha256,
+            extra={k: v[start:stop] for k, v in self.extra.items()},
+        )
+
+
+def _columns(run: Run) -> list[tuple[str, FloatArray]]:
+    cols: list[tuple[str, FloatArray]] = [
+        ("time_s", run.time_s),
+        ("temperature_c", run.temperature_c),
+    ]
+    cols += [(f"rate_{a}_dps", v) for a, v in run.rates_dps.items()]
+    if run.chamber_c is not None:
+        cols.append(("chamber_c", run.chamber_c))
+    cols += [(f"true_bias_{a}_dps", v) for a, v in run.true_bias_dps.items()]
+    cols += list(run.extra.items())
+    return cols
+
+
+def format_run(run: Run) -> str:
+    """The run as CSV version 1 text."""
+    buf = io.StringIO()
+    buf.write(f"# {_MAGIC}: {RUN_FILE_VERSION}\n")
+    meta = {"name": run.name, **{k: v for k, v in run.metadata.items() if k != "name"}}
+    for key, value in meta.items():
+        if "\n" in key or "\n" in str(value) or ":" in key:
+            raise RunFileError(f"metadata key {key!r} or its value cannot be written")
+        buf.write(f"# {key}: {value}\n")
+    cols = _columns(run)
+    buf.write(",".join(name for name, _ in cols) + "\n")
+    data = np.column_stack([v for _, v in cols]) if len(run) else np.empty((0, len(cols)))
+    np.savetxt(buf, data, delimiter=",", fmt="%.9g")
+    return buf.getvalue()
+
+
+def write_run(run: Run, path: str | Path) -> Path:
+    """Write ``run`` to ``path`` (CSV version 1) and return the path."""
+    p = Path(path)
+    p.write_text(format_run(run), encoding="utf-8")
+    return p
+
+
+def read_run(path: str | Path) -> Run:
+    """Read a run file; raise :class:`RunFileError` naming file, line and problem."""
+    p = Path(path)
+    try:
+        raw = p.read_bytes()
+    except OSError as exc:
+        raise RunFileError(f"{p}: cannot read run file: {exc.strerror}") from exc
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise RunFileError(f"{p}: not UTF-8 text (byte {exc.start})") from exc
+    return parse_run(text, source=str(p), sha256=hashlib.sha256(raw).hexdigest())
+
+
+def parse_run(text: str, *, source: str = "<memory>", sha256: str = "") -> Run:
+    """Parse CSV version 1 ``text``; ``source`` names it in errors."""
+    if not sha256:
+        sha256 = hashlib.sha256(text.encode("utf-8")).hexdigest()
+    lines = text.splitlines()
+    if not lines or not lines[0].strip():
+        raise RunFileError(f"{source}: line 1: empty file, expected '# {_MAGIC}: 1'")
+    first = lines[0].lstrip("#").strip()
+    key, _, value = first.partition(":")
+    if not lines[0].startswith("#") or key.strip() != _MAGIC:
+        raise RunFileError(f"{source}: line 1: expected '# {_MAGIC}: 1', got {lines[0][:60]!r}")
+    if value.strip() != str(RUN_FILE_VERSION):
+        raise RunFileError(
+            f"{source}: line 1: unsupported run file version {value.strip()!r} "
+            f"(this gyrotherm reads version {RUN_FILE_VERSION})"
+        )
+    metadata: dict[str, str] = {}
+    i = 1
+    while i < len(lines) and lines[i].startswith("#"):
+        k, sep, v = lines[i][1:].partition(":")
+        if sep:
+            metadata[k.strip()] = v.strip()
+        i += 1
+    if i >= len(lines):
+        raise RunFileError(f"{source}: line {i + 1}: missing header row (time_s,temperature_c,...)")
+    header = [h.strip() for h in lines[i].split(",")]
+    header_line = i + 1
+    for required in ("time_s", "temperature_c"):
+        if required not in header:
+            raise RunFileError(f"{source}: line {header_line}: missing column {required!r}")
+    if not any(f"rate_{a}_dps" in header for a in AXES):
+        raise RunFileError(
+            f"{source}: line {header_line}: missing rate column "
+            "(need at least one of rate_x_dps, rate_y_dps, rate_z_dps)"
+        )
+    dupes = {h for h in header if header.count(h) > 1}
+    if dupes:
+        raise RunFileError(f"{source}: line {header_line}: duplicate columns {sorted(dupes)}")
+    body = lines[i + 1 :]
+    first_data_line = header_line + 1
+    # Drop trailing blank lines; blank lines inside the body are errors.
+    while body and not body[-1].strip():
+        body.pop()
+    if not body:
+        raise RunFileError(f"{source}: line {first_data_line}: no data rows")
+    data = _parse_body(body, len(header), source, first_data_line)
+    col = {name: data[:, j] for j, name in enumerate(header)}
+    bad = ~np.isfinite(data)
+    if bad.any():
+        row, j = map(int, np.argwhere(bad)[0])
+        raise RunFileError(
+            f"{source}: line {first_data_line + row}: column {header[j]!r} is not a finite number"
+        )
+    t = col["time_s"]
+    steps = np.diff(t)
+    if (steps <= 0).any():
+        row = int(np.argmax(steps <= 0)) + 1
+        raise RunFileError(
+            f"{source}: line {first_data_line + row}: time_s not increasing "
+            f"({t[row - 1]!r} then {t[row]!r})"
+        )
+    return Run(
+        name=metadata.get("name", Path(source).stem),
+        time_s=t,
+        temperature_c=col["temperature_c"],
+        rates_dps={a: col[f"rate_{a}_dps"] for a in AXES if f"rate_{a}_dps" in col},
+        chamber_c=col.get("chamber_c"),
+        true_bias_dps={a: col[f"true_bias_{a}_dps"] for a in AXES if f"true_bias_{a}_dps" in col},
+        metadata=metadata,
+        source=source,
+        sha256=sha256,
+        extra={h: col[h] for h in header if h not in _KNOWN and not _is_known(h)},
+    )
+
+
+_KNOWN = {"time_s", "temperature_c", "chamber_c"}
+
+
+def _is_known(column: str) -> bool:
+    return any(column in (f"rate_{a}_dps", f"true_bias_{a}_dps") for a in AXES)
+
+
+def _parse_body(body: list[str], width: int, source: str, first_line: int) -> FloatArray:
+    try:
+        data = np.loadtxt(io.StringIO("\n".join(body)), delimiter=",", ndmin=2, dtype=np.float64)
+        if data.shape[1] == width:
+            return data
+    except ValueError:
+        pass
+    # Slow path: find the first offending line and say what is wrong with it.
+    for k, line in enumerate(body):
+        fields = line.split(",")
+        where = f"{source}: line {first_line + k}"
+        if len(fields) != width:
+            raise RunFileError(f"{where}: expected {width} fields, got {len(fields)}")
+        for f in fields:
+            try:
+                float(f)
+            except ValueError:
+                raise RunFileError(f"{where}: {f.strip()!r} is not a number") from None
+    raise RunFileError(f"{source}: unreadable data rows")  # pragma: no cover
+

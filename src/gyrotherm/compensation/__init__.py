@@ -1,0 +1,46 @@
+"""Compensation: bias models in T and ΔT, least-squares fitting, calibration files."""
+
+from gyrotherm.compensation._calibration import (
+    BiasEstimate,
+    Calibration,
+    ValidRange,
+    load_calibration,
+)
+from gyrotherm.compensation._fit import (
+    METHODS,
+    HeldOut,
+    Method,
+    RunFeatures,
+    default_scaling,
+    features,
+    fit,
+    fit_per_run,
+    leave_one_out,
+    score,
+)
+from gyrotherm.compensation._metrics import ErrorMetrics, RunScore
+from gyrotherm.compensation._models import MODELS, ModelSpec, Scaling, Term, get_model
+
+__all__ = [
+    "METHODS",
+    "MODELS",
+    "BiasEstimate",
+    "Calibration",
+    "ErrorMetrics",
+    "HeldOut",
+    "Method",
+    "ModelSpec",
+    "RunFeatures",
+    "RunScore",
+    "Scaling",
+    "Term",
+    "ValidRange",
+    "default_scaling",
+    "features",
+    "fit",
+    "fit_per_run",
+    "get_model",
+    "leave_one_out",
+    "load_calibration",
+    "score",
+]

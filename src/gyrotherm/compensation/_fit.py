@@ -1,0 +1,212 @@
+"""Least-squares fitting of bias models to runs, and leave-one-run-out validation.
+
+Per run r with rows i, the estimator (the same one the daemon runs) turns the
+temperature readings into T_i and ΔT_i; the design matrix A_r holds the model's
+terms in centred variables and the fit solves min ‖A_r c − y_r‖² per axis
+(``numpy.linalg.lstsq``, an SVD: no normal equations, no squared condition
+number). Methods:
+
+* ``pooled``: one least-squares fit over the rows of all runs stacked;
+* ``paper-average``: Tang et al.'s eq. (12): the mean of the per-run
+  coefficient vectors (Table 1 → eq. 12 is exactly that column mean). With a
+  common scaling the mean of centred coefficients equals the mean of the
+  physical ones, since the map between them is linear.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from gyrotherm import __version__
+from gyrotherm._errors import CalibrationError
+from gyrotherm.codecs import Run
+from gyrotherm.compensation._calibration import Calibration, ValidRange
+from gyrotherm.compensation._metrics import ErrorMetrics, RunScore
+from gyrotherm.compensation._models import ModelSpec, Scaling, get_model
+from gyrotherm.estimators import EstimatorConfig, estimate_series
+
+FloatArray = NDArray[np.float64]
+Method = Literal["pooled", "paper-average"]
+METHODS: tuple[Method, ...] = ("pooled", "paper-average")
+
+
+@dataclass(frozen=True)
+class RunFeatures:
+    """A run turned into model inputs: estimated T and ΔT (°C) and raw rates (°/s)."""
+
+    name: str
+    source: str
+    sha256: str
+    time_s: FloatArray
+    temperature_c: FloatArray
+    delta_t_c: FloatArray
+    rates_dps: Mapping[str, FloatArray]
+    true_bias_dps: Mapping[str, FloatArray] = field(default_factory=dict)
+
+    @property
+    def axes(self) -> tuple[str, ...]:
+        return tuple(self.rates_dps)
+
+
+def features(run: Run, estimator: EstimatorConfig) -> RunFeatures:
+    """Estimate T and ΔT along ``run`` with the online estimator."""
+    est = estimate_series(run.time_s, run.temperature_c, estimator)
+    return RunFeatures(
+        name=run.name,
+        source=run.source,
+        sha256=run.sha256,
+        time_s=run.time_s,
+        temperature_c=est.temperature_c,
+        delta_t_c=est.delta_t_c,
+        rates_dps=run.rates_dps,
+        true_bias_dps=run.true_bias_dps,
+    )
+
+
+def common_axes(runs: Sequence[RunFeatures]) -> tuple[str, ...]:
+    if not runs:
+        raise CalibrationError("no runs to fit")
+    axes = [a for a in ("x", "y", "z") if all(a in r.rates_dps for r in runs)]
+    if not axes:
+        raise CalibrationError("the runs share no rate axis")
+    return tuple(axes)
+
+
+def _solve(spec: ModelSpec, scaling: Scaling, runs: Sequence[RunFeatures], axis: str) -> FloatArray:
+    t = np.concatenate([r.temperature_c for r in runs])
+    d = np.concatenate([r.delta_t_c for r in runs])
+    y = np.concatenate([r.rates_dps[axis] for r in runs])
+    a = spec.design(*scaling.centre(t, d))
+    if len(y) < 2 * a.shape[1]:
+        raise CalibrationError(
+            f"model {spec.name!r} needs at least {2 * a.shape[1]} rows, got {len(y)}"
+        )
+    coef, _, rank, _ = np.linalg.lstsq(a, y, rcond=None)
+    if rank < a.shape[1]:
+        raise CalibrationError(
+            f"model {spec.name!r} is not identifiable from runs "
+            f"{[r.name for r in runs]}: design rank {rank} < {a.shape[1]} terms "
+            "(e.g. no temperature change, or no ΔT variation for a ΔT model)"
+        )
+    return np.asarray(coef, dtype=np.float64)
+
+
+def _range(runs: Sequence[RunFeatures]) -> ValidRange:
+    t = np.concatenate([r.temperature_c for r in runs])
+    d = np.concatenate([r.delta_t_c for r in runs])
+    return ValidRange(float(t.min()), float(t.max()), float(d.min()), float(d.max()))
+
+
+def default_scaling(runs: Sequence[RunFeatures]) -> Scaling:
+    return Scaling.from_data(
+        np.concatenate([r.temperature_c for r in runs]),
+        np.concatenate([r.delta_t_c for r in runs]),
+    )
+
+
+def fit(
+    runs: Sequence[RunFeatures],
+    model: ModelSpec | str,
+    *,
+    estimator: EstimatorConfig,
+    method: Method = "pooled",
+    scaling: Scaling | None = None,
+) -> Calibration:
+    """Fit ``model`` to ``runs`` (features made with ``estimator``)."""
+    spec = get_model(model) if isinstance(model, str) else model
+    if method not in METHODS:
+        raise CalibrationError(f"unknown method {method!r}; known: {', '.join(METHODS)}")
+    axes = common_axes(runs)
+    scaling = scaling or default_scaling(runs)
+    coefficients: dict[str, tuple[float, ...]] = {}
+    for axis in axes:
+        if method == "pooled":
+            c = _solve(spec, scaling, runs, axis)
+        else:
+            c = np.mean([_solve(spec, scaling, [r], axis) for r in runs], axis=0)
+        coefficients[axis] = tuple(float(v) for v in c)
+    calibration = Calibration(
+        model=spec,
+        scaling=scaling,
+        coefficients=coefficients,
+        valid_range=_range(runs),
+        estimator=estimator,
+        provenance={
+            "method": method,
+            "runs": [{"name": r.name, "source": r.source, "sha256": r.sha256,
+                      "rows": len(r.time_s)} for r in runs],
+            "fit_time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            "gyrotherm_version": __version__,
+        },
+    )
+    metrics = {s.axis + ":" + s.run: s.compensated.to_dict()
+               for r in runs for s in score(calibration, r)}
+    return replace(calibration, provenance={**calibration.provenance, "residuals": metrics})
+
+
+def fit_per_run(
+    runs: Sequence[RunFeatures],
+    model: ModelSpec | str,
+    *,
+    estimator: EstimatorConfig,
+    scaling: Scaling | None = None,
+) -> list[Calibration]:
+    """One fit per run, all with the same scaling (Table 1)."""
+    scaling = scaling or default_scaling(runs)
+    return [fit([r], model, estimator=estimator, scaling=scaling) for r in runs]
+
+
+def score(calibration: Calibration, run: RunFeatures) -> list[RunScore]:
+    """Raw and compensated error metrics of ``run`` under ``calibration``, per axis."""
+    out = []
+    for axis in calibration.axes:
+        if axis not in run.rates_dps:
+            continue
+        bias, clamped = calibration.bias_series(axis, run.temperature_c, run.delta_t_c)
+        raw = run.rates_dps[axis]
+        truth = run.true_bias_dps.get(axis)
+        out.append(RunScore(
+            run=run.name,
+            axis=axis,
+            raw=ErrorMetrics.of(raw),
+            compensated=ErrorMetrics.of(raw - bias),
+            truth=None if truth is None else ErrorMetrics.of(bias - truth),
+            clamped_fraction=float(np.mean(clamped)),
+        ))
+    return out
+
+
+@dataclass(frozen=True)
+class HeldOut:
+    """Leave-one-run-out result: fitted on all runs but ``run``, scored on ``run``."""
+
+    run: str
+    scores: tuple[RunScore, ...]
+
+
+def leave_one_out(
+    runs: Sequence[RunFeatures],
+    model: ModelSpec | str,
+    *,
+    estimator: EstimatorConfig,
+    method: Method = "pooled",
+    progress: Callable[[int, int], None] | None = None,
+) -> list[HeldOut]:
+    """Fit on every run but one and score the one left out, for every run."""
+    if len(runs) < 2:
+        raise CalibrationError("leave-one-run-out needs at least 2 runs")
+    scaling = default_scaling(runs)
+    out = []
+    for i, held in enumerate(runs):
+        rest = [r for j, r in enumerate(runs) if j != i]
+        cal = fit(rest, model, estimator=estimator, method=method, scaling=scaling)
+        out.append(HeldOut(held.name, tuple(score(cal, held))))
+        if progress:
+            progress(i + 1, len(runs))
+    return out

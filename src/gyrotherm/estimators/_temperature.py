@@ -1,0 +1,289 @@
+"""Kalman filter for the gyro's internal temperature T and its gradient ΔT.
+
+State ``x = [T, Ṫ]`` (°C, °C/s), constant-velocity model with a continuous
+white-noise jerk of spectral density ``q`` (°C²/s³)::
+
+    F(dt) = [[1, dt], [0, 1]]
+    Q(dt) = q · [[dt³/3, dt²/2], [dt²/2, dt]]
+    H     = [1, 0],   R = σ_noise² + LSB²/12      (°C²)
+
+The gradient follows from first-order thermal coupling between the gyro and
+its environment, ``τ·dT/dt = T_env − T``, so ``ΔT = T_env − T = τ·Ṫ`` with
+``σ_ΔT = τ·σ_Ṫ`` (see docs/model.md). Measurements whose innovation exceeds
+``gate_sigma`` standard deviations are rejected as spikes; after
+``max_consecutive_rejections`` rejections in a row the filter re-initialises
+on the reading (a real step, not a spike). Without measurements the state is
+only predicted, and flagged stale once ``stale_after_s`` passes.
+
+The filterpy ``KalmanFilter`` is private: callers see frozen
+:class:`TemperatureEstimate` values, never the mutable ``x`` / ``P``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+from typing import Any
+
+import numpy as np
+from filterpy.kalman import KalmanFilter
+from numpy.typing import NDArray
+
+from gyrotherm._errors import ConfigError
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    """Settings of the temperature / ΔT estimator; all fields carry their unit.
+
+    Fitting and run-time compensation must use the same settings: they are
+    stored in every calibration file.
+    """
+
+    tau_s: float = 120.0
+    """Thermal time constant gyro ↔ environment, s: ΔT = tau_s · dT/dt."""
+    noise_c: float = 0.02
+    """Temperature sensor white-noise standard deviation, °C."""
+    quantisation_c: float = 0.01
+    """Temperature sensor resolution (LSB), °C."""
+    process_noise_c2_per_s3: float = 1e-7
+    """Spectral density q of the white jerk driving dT/dt, °C²/s³."""
+    update_period_s: float = 0.0
+    """Offline only: minimum spacing of readings fed to the filter from a run
+    file, s (0 = every row). Set it to the sensor's update period when rows
+    repeat a held reading."""
+    gate_sigma: float = 6.0
+    """Innovation gate, in standard deviations of the innovation."""
+    max_consecutive_rejections: int = 5
+    """Re-initialise after this many gated readings in a row."""
+    stale_after_s: float = 5.0
+    """Flag the estimate stale when no reading has arrived for this long, s."""
+    initial_rate_std_c_per_s: float = 0.05
+    """Prior standard deviation of dT/dt at initialisation, °C/s."""
+
+    def __post_init__(self) -> None:
+        bounds: dict[str, tuple[float, float]] = {
+            "tau_s": (1e-3, 1e6),
+            "noise_c": (0.0, 10.0),
+            "quantisation_c": (0.0, 10.0),
+            "process_noise_c2_per_s3": (1e-15, 1e3),
+            "update_period_s": (0.0, 3600.0),
+            "gate_sigma": (1.0, 1e3),
+            "max_consecutive_rejections": (1, 1e6),
+            "stale_after_s": (1e-3, 1e6),
+            "initial_rate_std_c_per_s": (1e-6, 1e3),
+        }
+        for name, (lo, hi) in bounds.items():
+            value = getattr(self, name)
+            if not isinstance(value, int | float) or isinstance(value, bool):
+                raise ConfigError(f"estimator.{name}: expected a number, got {value!r}")
+            if not (lo <= value <= hi) or not math.isfinite(value):
+                raise ConfigError(f"estimator.{name} = {value!r} is outside [{lo:g}, {hi:g}]")
+        if self.noise_c == 0.0 and self.quantisation_c == 0.0:
+            raise ConfigError("estimator: noise_c and quantisation_c cannot both be 0")
+
+    @property
+    def measurement_variance_c2(self) -> float:
+        """R = σ² + LSB²/12, °C²."""
+        return self.noise_c**2 + self.quantisation_c**2 / 12.0
+
+    def to_dict(self) -> dict[str, float | int]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], *, where: str = "estimator") -> EstimatorConfig:
+        """Build from a mapping; unknown or wrongly typed fields are a ConfigError."""
+        known = {f.name for f in fields(cls)}
+        unknown = set(data) - known
+        if unknown:
+            raise ConfigError(f"{where}: unknown field(s) {sorted(unknown)}")
+        try:
+            return cls(**data)
+        except TypeError as exc:
+            raise ConfigError(f"{where}: {exc}") from exc
+
+
+@dataclass(frozen=True)
+class TemperatureEstimate:
+    """Filtered temperature state at ``time_s``.
+
+    ``delta_t_c`` is the gradient ΔT = T_env − T = τ·dT/dt (°C), positive while
+    heating. ``stale`` is set when no reading arrived for ``stale_after_s``;
+    ``rejected`` when the latest reading was gated out as a spike.
+    """
+
+    time_s: float
+    temperature_c: float
+    rate_c_per_s: float
+    delta_t_c: float
+    temperature_std_c: float
+    rate_std_c_per_s: float
+    delta_t_std_c: float
+    stale: bool
+    rejected: bool
+    updates: int
+
+
+class TemperatureEstimator:
+    """Online T / ΔT estimator (filterpy Kalman filter behind a typed API)."""
+
+    def __init__(self, config: EstimatorConfig | None = None) -> None:
+        self._cfg = config or EstimatorConfig()
+        self._kf = KalmanFilter(dim_x=2, dim_z=1)
+        self._kf.H = np.array([[1.0, 0.0]])
+        self._kf.R = np.array([[self._cfg.measurement_variance_c2]])
+        self._time_s: float | None = None
+        self._last_reading_s: float | None = None
+        self._updates = 0
+        self._rejections = 0
+        self._rejected = False
+        self._z = np.zeros((1, 1))
+        self._dt = math.nan
+        self._f = np.eye(2)
+        self._q = np.zeros((2, 2))
+        self.rejected_total = 0
+        """Readings gated out as spikes since construction."""
+        self.reinitialisations = 0
+        """Re-initialisations after repeated rejections."""
+
+    @property
+    def config(self) -> EstimatorConfig:
+        return self._cfg
+
+    @property
+    def initialised(self) -> bool:
+        return self._time_s is not None
+
+    def _init(self, time_s: float, temperature_c: float) -> None:
+        self._kf.x = np.array([[temperature_c], [0.0]])
+        self._kf.P = np.diag(
+            [self._cfg.measurement_variance_c2, self._cfg.initial_rate_std_c_per_s**2]
+        )
+        self._time_s = time_s
+        self._last_reading_s = time_s
+        self._rejections = 0
+        self._rejected = False
+        self._updates += 1
+
+    def _predict_to(self, time_s: float) -> None:
+        assert self._time_s is not None
+        dt = time_s - self._time_s
+        if dt <= 0.0:
+            return
+        if dt != self._dt:  # F and Q depend on dt only: rebuild when it changes
+            q = self._cfg.process_noise_c2_per_s3
+            self._f = np.array([[1.0, dt], [0.0, 1.0]])
+            self._q = q * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
+            self._dt = dt
+        self._kf.predict(F=self._f, Q=self._q)
+        self._time_s = time_s
+
+    def update(self, time_s: float, temperature_c: float) -> TemperatureEstimate:
+        """Predict to ``time_s`` (s) and fuse the reading ``temperature_c`` (°C).
+
+        Readings older than the filter's time are fused at the filter's time
+        (no retrodiction). Non-finite readings are rejected.
+        """
+        self._fuse(time_s, temperature_c)
+        if not math.isfinite(time_s):
+            time_s = self._time_s or 0.0
+        return self.estimate(time_s)
+
+    def _fuse(self, time_s: float, temperature_c: float) -> None:
+        if not math.isfinite(temperature_c) or not math.isfinite(time_s):
+            self._rejected = True
+            self.rejected_total += 1
+            return
+        if self._time_s is None:
+            self._init(time_s, temperature_c)
+            return
+        self._predict_to(time_s)
+        innovation = temperature_c - float(self._kf.x[0, 0])
+        s = float(self._kf.P[0, 0]) + self._cfg.measurement_variance_c2
+        if innovation * innovation > self._cfg.gate_sigma**2 * s:
+            self._rejections += 1
+            self.rejected_total += 1
+            self._rejected = True
+            if self._rejections >= self._cfg.max_consecutive_rejections:
+                self.reinitialisations += 1
+                self._init(max(time_s, self._time_s), temperature_c)
+            return
+        self._z[0, 0] = temperature_c
+        self._kf.update(self._z)
+        self._rejections = 0
+        self._rejected = False
+        self._updates += 1
+        self._last_reading_s = max(time_s, self._last_reading_s or time_s)
+
+    def _state(self) -> tuple[float, float]:
+        return float(self._kf.x[0, 0]), float(self._kf.x[1, 0])
+
+    def predict(self, time_s: float) -> TemperatureEstimate:
+        """Advance to ``time_s`` without a reading (predict-only)."""
+        if self._time_s is not None:
+            self._predict_to(time_s)
+        return self.estimate(time_s)
+
+    def estimate(self, time_s: float | None = None) -> TemperatureEstimate:
+        """The current estimate; ``time_s`` (s) decides the stale flag only."""
+        if self._time_s is None:
+            nan = math.nan
+            t = nan if time_s is None else time_s
+            return TemperatureEstimate(t, nan, nan, nan, nan, nan, nan, True, self._rejected, 0)
+        now = self._time_s if time_s is None else max(time_s, self._time_s)
+        x, p = self._kf.x, self._kf.P
+        tau = self._cfg.tau_s
+        rate_std = math.sqrt(max(float(p[1, 1]), 0.0))
+        assert self._last_reading_s is not None
+        return TemperatureEstimate(
+            time_s=now,
+            temperature_c=float(x[0, 0]),
+            rate_c_per_s=float(x[1, 0]),
+            delta_t_c=tau * float(x[1, 0]),
+            temperature_std_c=math.sqrt(max(float(p[0, 0]), 0.0)),
+            rate_std_c_per_s=rate_std,
+            delta_t_std_c=tau * rate_std,
+            stale=(now - self._last_reading_s) > self._cfg.stale_after_s,
+            rejected=self._rejected,
+            updates=self._updates,
+        )
+
+
+@dataclass(frozen=True)
+class EstimateSeries:
+    """Estimator output for every row of a run (held between readings)."""
+
+    temperature_c: FloatArray
+    delta_t_c: FloatArray
+    rate_c_per_s: FloatArray
+
+
+def estimate_series(
+    time_s: FloatArray, temperature_c: FloatArray, config: EstimatorConfig
+) -> EstimateSeries:
+    """Run the estimator over a recorded series, as the daemon would online.
+
+    A row is fed to the filter when at least ``config.update_period_s`` has
+    passed since the last fed row; every row receives the latest estimate.
+    """
+    n = len(time_s)
+    est = TemperatureEstimator(config)
+    t_out = np.empty(n)
+    d_out = np.empty(n)
+    r_out = np.empty(n)
+    period = config.update_period_s - 1e-9
+    last_fed = -math.inf
+    temp, rate = math.nan, math.nan
+    times = time_s.tolist()
+    readings = temperature_c.tolist()
+    for i in range(n):
+        t = times[i]
+        if t - last_fed >= period:
+            est._fuse(t, readings[i])
+            temp, rate = est._state()
+            last_fed = t
+        t_out[i] = temp
+        r_out[i] = rate
+    return EstimateSeries(temperature_c=t_out, delta_t_c=config.tau_s * r_out, rate_c_per_s=r_out)
