@@ -59,6 +59,7 @@ class Run:
     metadata: Mapping[str, str] = field(default_factory=dict)
     source: str = "<memory>"
     sha256: str = ""
+    """sha256 of the file read, or of the measured columns for in-memory runs."""
     extra: Mapping[str, FloatArray] = field(default_factory=dict)
     """Other numeric columns, by header name (e.g. simulation truth
     ``true_temperature_c``, ``true_delta_t_c``); tools ignore them except to score."""
@@ -85,6 +86,11 @@ class Run:
             others.append(self.chamber_c)
         if any(len(a) != n for a in others):
             raise RunFileError(f"{self.source}: columns of run {self.name!r} differ in length")
+        if not self.sha256:  # in-memory run: hash the measured columns
+            h = hashlib.sha256()
+            for a in (self.time_s, self.temperature_c, *rates.values()):
+                h.update(a.tobytes())
+            object.__setattr__(self, "sha256", h.hexdigest())
 
     @property
     def axes(self) -> tuple[str, ...]:

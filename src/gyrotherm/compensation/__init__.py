@@ -16,6 +16,7 @@ from gyrotherm.compensation._fit import (
     fit,
     fit_per_run,
     leave_one_out,
+    mean_coefficients,
     score,
 )
 from gyrotherm.compensation._metrics import ErrorMetrics, RunScore
@@ -42,5 +43,6 @@ __all__ = [
     "get_model",
     "leave_one_out",
     "load_calibration",
+    "mean_coefficients",
     "score",
 ]

@@ -247,7 +247,8 @@ def _parse(data: Any, source: str) -> Calibration:
             provenance=_get(data, "provenance", dict, source),
         )
     except ConfigError as exc:
-        raise CalibrationError(str(exc)) from exc
+        msg = str(exc)
+        raise CalibrationError(msg if msg.startswith(source) else f"{source}: {msg}") from exc
     except CalibrationError as exc:
         if str(exc).startswith(source):
             raise

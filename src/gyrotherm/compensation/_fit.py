@@ -97,6 +97,16 @@ def _solve(spec: ModelSpec, scaling: Scaling, runs: Sequence[RunFeatures], axis:
     return np.asarray(coef, dtype=np.float64)
 
 
+def mean_coefficients(per_run: Sequence[FloatArray]) -> FloatArray:
+    """Tang et al.'s eq. (12): the element-wise mean of per-run coefficient vectors.
+
+    All vectors must share one scaling; the mean then commutes with the
+    (linear) map to physical units, so it equals the mean of Table 1's columns.
+    """
+    stacked = np.vstack([np.asarray(c, dtype=np.float64) for c in per_run])
+    return np.asarray(stacked.mean(axis=0), dtype=np.float64)
+
+
 def _range(runs: Sequence[RunFeatures]) -> ValidRange:
     t = np.concatenate([r.temperature_c for r in runs])
     d = np.concatenate([r.delta_t_c for r in runs])
@@ -129,7 +139,7 @@ def fit(
         if method == "pooled":
             c = _solve(spec, scaling, runs, axis)
         else:
-            c = np.mean([_solve(spec, scaling, [r], axis) for r in runs], axis=0)
+            c = mean_coefficients([_solve(spec, scaling, [r], axis) for r in runs])
         coefficients[axis] = tuple(float(v) for v in c)
     calibration = Calibration(
         model=spec,

@@ -1,0 +1,93 @@
+"""Calibration files: round trip, and clear errors naming the field."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from gyrotherm import CalibrationError
+from gyrotherm.compensation import Calibration, RunFeatures, fit, load_calibration
+from gyrotherm.estimators import EstimatorConfig
+
+
+@pytest.fixture(scope="module")
+def calibration(paper_features: list[RunFeatures], estimator: EstimatorConfig) -> Calibration:
+    return fit(paper_features[:3], "paper", estimator=estimator)
+
+
+def test_round_trip(calibration: Calibration, tmp_path: Path) -> None:
+    path = calibration.save(tmp_path / "cal.json")
+    back = load_calibration(path)
+    assert back.model == calibration.model
+    assert back.scaling == calibration.scaling
+    assert back.valid_range == calibration.valid_range
+    assert back.estimator == calibration.estimator
+    for axis in "xyz":
+        np.testing.assert_array_equal(back.coefficients[axis], calibration.coefficients[axis])
+    doc = json.loads(path.read_text())
+    assert doc["schema"] == "gyrotherm.calibration" and doc["version"] == 1
+    assert doc["units"]["bias"] == "deg/s"
+    prov = doc["provenance"]
+    assert [r["name"] for r in prov["runs"]] == ["heat-05min", "heat-10min", "heat-20min"]
+    assert all(len(r["sha256"]) == 64 for r in prov["runs"])
+    assert prov["method"] == "pooled" and prov["fit_time_utc"].endswith("Z")
+    assert set(doc["coefficients_physical"]["x"]) == {"T^2", "T", "dT", "T*dT", "1"}
+
+
+def _broken(doc: dict[str, Any], path: str, value: object) -> dict[str, Any]:
+    out = json.loads(json.dumps(doc))
+    node = out
+    keys = path.split(".")
+    for k in keys[:-1]:
+        node = node[k]
+    if value is _DELETE:
+        del node[keys[-1]]
+    else:
+        node[keys[-1]] = value
+    return out
+
+
+_DELETE = object()
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "message"),
+    [
+        ("version", 2, r"field 'version': unsupported calibration version 2"),
+        ("schema", "px4", r"field 'schema': expected 'gyrotherm.calibration'"),
+        ("scaling.t_ref_c", _DELETE, r"missing field 'scaling.t_ref_c'"),
+        ("scaling.t_scale_c", "wide", r"field 'scaling.t_scale_c': expected int/float"),
+        ("coefficients.x", [1.0, 2.0], r"coefficients.x: expected 5 finite numbers"),
+        ("model.name", "quartic", r"field 'model.name': unknown model 'quartic'"),
+        ("model.terms", ["T", "1"], r"field 'model.terms'"),
+        ("units.rate", "rad/s", r"field 'units.rate': expected 'deg/s'"),
+        ("range", _DELETE, r"missing field 'range.t_min_c'"),
+        ("estimator.tau_s", -1.0, r"estimator.tau_s = -1.0 is outside"),
+        ("estimator.colour", 1, r"unknown field\(s\) \['colour'\]"),
+        ("provenance", _DELETE, r"missing field 'provenance'"),
+    ],
+)
+def test_bad_files_name_the_field(
+    calibration: Calibration, tmp_path: Path, path: str, value: object, message: str
+) -> None:
+    p = tmp_path / "bad.json"
+    p.write_text(json.dumps(_broken(calibration.to_dict(), path, value)))
+    with pytest.raises(CalibrationError, match=message) as info:
+        load_calibration(p)
+    assert str(p) in str(info.value)
+
+
+def test_not_json_and_missing_file(tmp_path: Path) -> None:
+    p = tmp_path / "cal.json"
+    p.write_text('{"schema": "gyrotherm.calibration",\n  "version": }')
+    with pytest.raises(CalibrationError, match=r"line 2: not valid JSON"):
+        load_calibration(p)
+    with pytest.raises(CalibrationError, match="cannot read calibration file"):
+        load_calibration(tmp_path / "absent.json")
+    p.write_text("[1, 2]")
+    with pytest.raises(CalibrationError, match="expected a JSON object"):
+        load_calibration(p)
