@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -44,7 +44,7 @@ def error_table(columns: Sequence[tuple[str, Sequence[RunScore]]], *, title: str
 
     Each column's scores are averaged over the axes (and runs) it holds.
     """
-    stats = [
+    stats: list[tuple[str, Callable[[RunScore], float]]] = [
         ("|average error|", lambda s: abs(s.compensated.mean_dps)),
         ("RMS error", lambda s: s.compensated.rms_dps),
         ("max |error|", lambda s: s.compensated.max_abs_dps),

@@ -229,7 +229,7 @@ def parse_run(text: str, *, source: str = "<memory>", sha256: str = "") -> Run:
         row = int(np.argmax(steps <= 0)) + 1
         raise RunFileError(
             f"{source}: line {first_data_line + row}: time_s not increasing "
-            f"({t[row - 1]!r} then {t[row]!r})"
+            f"({t[row - 1]:g} then {t[row]:g})"
         )
     return Run(
         name=metadata.get("name", Path(source).stem),

@@ -185,7 +185,7 @@ def _get(data: Any, path: str, kind: type | tuple[type, ...], source: str) -> An
         if not isinstance(node, dict) or key not in node:
             raise CalibrationError(f"{source}: missing field {path!r}")
         node = node[key]
-    if not isinstance(node, kind) or isinstance(node, bool) and kind is not bool:
+    if not isinstance(node, kind) or (isinstance(node, bool) and kind is not bool):
         want = kind.__name__ if isinstance(kind, type) else "/".join(k.__name__ for k in kind)
         raise CalibrationError(f"{source}: field {path!r}: expected {want}, got {node!r}")
     return node

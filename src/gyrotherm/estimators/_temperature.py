@@ -271,7 +271,6 @@ def estimate_series(
     n = len(time_s)
     est = TemperatureEstimator(config)
     t_out = np.empty(n)
-    d_out = np.empty(n)
     r_out = np.empty(n)
     period = config.update_period_s - 1e-9
     last_fed = -math.inf

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 from numpy.typing import NDArray
@@ -58,7 +59,7 @@ class ChamberProfile:
             raise ConfigError("chamber profile: need at least two set-points")
         if pts[0].time_s != 0.0:
             raise ConfigError(f"chamber profile: first set-point at {pts[0].time_s} s, not 0 s")
-        for a, b in zip(pts, pts[1:], strict=False):
+        for a, b in pairwise(pts):
             if b.time_s <= a.time_s:
                 raise ConfigError(
                     f"chamber profile: set-point times must increase ({a.time_s} then {b.time_s})"
@@ -89,7 +90,7 @@ class ChamberProfile:
         """Realised chamber air temperature (°C) on the regular grid ``time_s``."""
         dt = float(time_s[1] - time_s[0])
         target = self.setpoint_c(time_s)
-        for a, b in zip(self.setpoints, self.setpoints[1:], strict=False):
+        for a, b in pairwise(self.setpoints):
             if a.temperature_c != b.temperature_c:
                 on = (time_s >= a.time_s) & (time_s <= b.time_s)
                 u = (time_s[on] - a.time_s) / (b.time_s - a.time_s)

@@ -29,7 +29,8 @@ def heating_profile(
     """Soak at ``cold_c``, ramp to ``hot_c`` over ``heating_min`` minutes, hold."""
     ramp_end = hold_before_s + heating_min * 60.0
     return ChamberProfile.from_pairs(
-        [(0.0, cold_c), (hold_before_s, cold_c), (ramp_end, hot_c), (ramp_end + hold_after_s, hot_c)]
+        [(0.0, cold_c), (hold_before_s, cold_c), (ramp_end, hot_c),
+         (ramp_end + hold_after_s, hot_c)]
     )
 
 

@@ -131,7 +131,7 @@ def simulate(
     rng = np.random.default_rng(seed)
     dt = 1.0 / rate_hz
     n = int(np.floor(profile.duration_s * rate_hz)) + 1
-    t = np.arange(n) * dt
+    t = np.arange(n, dtype=np.float64) * dt
     air = profile.realise(t, chamber, rng)
     drive = air + gyro.self_heating_c
     die = first_order(drive, dt, gyro.tau_s, float(air[0]))
@@ -149,7 +149,8 @@ def simulate(
         white = rng.standard_normal(n) * gyro.arw_deg_per_rth / 60.0 * np.sqrt(rate_hz)
         bi = (ou_process(n, dt, gyro.bias_instability_deg_per_h / 3600.0 / 0.62,
                          gyro.bi_tau_s, rng) if gyro.bias_instability_deg_per_h > 0 else 0.0)
-        rrw = np.cumsum(rng.standard_normal(n)) * gyro.rrw_deg_per_h_per_rth / 3600 / 60 * np.sqrt(dt)
+        rrw_step = gyro.rrw_deg_per_h_per_rth / 3600 / 60 * np.sqrt(dt)
+        rrw = np.cumsum(rng.standard_normal(n)) * rrw_step
         offset = rng.standard_normal() * gyro.switch_on_std_dps
         rates[axis] = _quantise(bias + offset + white + bi + rrw, gyro.rate_lsb_dps)
         truth[axis] = bias
