@@ -1,0 +1,305 @@
+"""The example Zenoh configurations in deploy/zenoh/ against eclipse-zenoh itself.
+
+* Every file parses with ``zenoh.Config.from_file`` (zenoh's own schema check
+  rejects unknown keys and bad enum values, so this validates key names too).
+* The project's network rules hold in each: multicast and gossip scouting
+  off, explicit endpoints, nothing listening on 0.0.0.0 or [::] — read back
+  from zenoh's effective configuration, where an absent ``listen`` would show
+  zenoh's default ``tcp/[::]:…``.
+* With certificates made by the ``openssl`` CLI in a temporary directory:
+  two sessions configured from tls-mutual.json5 exchange a sample over mutual
+  TLS on 127.0.0.1 while a certificate from another CA is refused; and a
+  router configured from acl-router.json5 forwards the daemon's samples and
+  replies to a viewer but drops a viewer's publication under gyrotherm/**.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import socket
+import subprocess
+import threading
+from collections.abc import Iterator
+from contextlib import ExitStack, contextmanager
+from pathlib import Path
+from typing import Any
+
+import pytest
+import zenoh
+
+DEPLOY_ZENOH = Path(__file__).resolve().parents[2] / "deploy" / "zenoh"
+CONFIG_FILES = sorted(DEPLOY_ZENOH.glob("*.json5"))
+WAIT_S = 10.0
+
+
+def _json(config: zenoh.Config, key: str) -> Any:
+    return json.loads(config.get_json(key))
+
+
+def _effective(config: zenoh.Config, key: str) -> list[str]:
+    """A mode-dependent endpoint list resolved for the config's own mode."""
+    value = _json(config, key)
+    if isinstance(value, dict):
+        value = value.get(_json(config, "mode"), [])
+    assert isinstance(value, list)
+    return [str(item) for item in value]
+
+
+def test_expected_config_files_exist() -> None:
+    names = {path.name for path in CONFIG_FILES}
+    assert names == {
+        "peer-vehicle.json5",
+        "client-of-router.json5",
+        "router.json5",
+        "tls-mutual.json5",
+        "acl-router.json5",
+    }
+
+
+@pytest.mark.parametrize("path", CONFIG_FILES, ids=lambda p: p.name)
+def test_config_parses_and_follows_network_rules(path: Path) -> None:
+    config = zenoh.Config.from_file(str(path))
+    mode = _json(config, "mode")
+    assert mode in {"peer", "client", "router"}
+    assert _json(config, "scouting/multicast/enabled") is False
+    assert _json(config, "scouting/gossip/enabled") is False
+    listen = _effective(config, "listen/endpoints")
+    connect = _effective(config, "connect/endpoints")
+    if mode == "client":
+        assert listen == []
+        assert connect, "a client needs a router endpoint"
+    else:
+        assert listen, f"{path.name}: explicit listen endpoints are required"
+    for endpoint in listen + connect:
+        protocol, _, address = endpoint.partition("/")
+        assert protocol in {"tcp", "tls"}, endpoint
+        host = address.rsplit(":", 1)[0]
+        assert host not in {"0.0.0.0", "[::]", "::", "[::0]"}, endpoint
+    for endpoint in listen:
+        assert endpoint.split("/", 1)[1].startswith("127.0.0.1:"), endpoint
+
+
+def test_tls_configs_require_mutual_tls_only() -> None:
+    for name in ("tls-mutual.json5", "acl-router.json5"):
+        config = zenoh.Config.from_file(str(DEPLOY_ZENOH / name))
+        tls = _json(config, "transport/link/tls")
+        assert tls["enable_mtls"] is True, name
+        assert tls["root_ca_certificate"], name
+        assert tls["listen_certificate"] and tls["listen_private_key"], name
+        assert _json(config, "transport/link/protocols") == ["tls"], name
+    tls = _json(
+        zenoh.Config.from_file(str(DEPLOY_ZENOH / "tls-mutual.json5")), "transport/link/tls"
+    )
+    assert tls["connect_certificate"] and tls["connect_private_key"]
+    assert tls["verify_name_on_connect"] is True
+
+
+def test_acl_lets_only_the_daemon_publish_under_gyrotherm() -> None:
+    acl = _json(zenoh.Config.from_file(str(DEPLOY_ZENOH / "acl-router.json5")), "access_control")
+    assert acl["enabled"] is True
+    assert acl["default_permission"] == "deny"
+    rules = {rule["id"]: rule for rule in acl["rules"]}
+    subjects = {subject["id"]: subject for subject in acl["subjects"]}
+    publishing = {"put", "delete", "declare_queryable", "reply"}
+    for policy in acl["policies"]:
+        for rule_id in policy["rules"]:
+            rule = rules[rule_id]
+            assert rule["permission"] == "allow"
+            grants_publish = "ingress" in rule["flows"] and publishing & set(rule["messages"])
+            if grants_publish:
+                assert policy["subjects"] == ["daemon"], rule_id
+    assert subjects["daemon"]["cert_common_names"] == ["gyrotherm-daemon"]
+
+
+# --------------------------------------------------------------- live TLS tests
+def _openssl(*args: str, cwd: Path) -> None:
+    subprocess.run(["openssl", *args], cwd=cwd, check=True, capture_output=True, timeout=60)
+
+
+def _make_ca(directory: Path, name: str) -> None:
+    _openssl(
+        "req", "-x509", "-new", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:P-256",
+        "-nodes", "-keyout", f"{name}-key.pem", "-out", f"{name}.pem", "-days", "2",
+        "-subj", f"/CN={name}", "-set_serial", "1",
+        "-addext", "basicConstraints=critical,CA:TRUE",
+        "-addext", "keyUsage=critical,keyCertSign,cRLSign",
+        cwd=directory,
+    )  # fmt: skip
+
+
+def _make_leaf(directory: Path, ca: str, common_name: str, serial: int) -> None:
+    extensions = directory / f"{common_name}.ext"
+    extensions.write_text(
+        "basicConstraints=critical,CA:FALSE\n"
+        "keyUsage=critical,digitalSignature\n"
+        "extendedKeyUsage=serverAuth,clientAuth\n"
+        "subjectAltName=IP:127.0.0.1,DNS:localhost\n"
+    )
+    _openssl(
+        "req", "-new", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:P-256", "-nodes",
+        "-keyout", f"{common_name}-key.pem", "-out", f"{common_name}.csr",
+        "-subj", f"/CN={common_name}",
+        cwd=directory,
+    )  # fmt: skip
+    _openssl(
+        "x509", "-req", "-in", f"{common_name}.csr", "-CA", f"{ca}.pem",
+        "-CAkey", f"{ca}-key.pem", "-set_serial", str(serial), "-days", "2",
+        "-extfile", extensions.name, "-out", f"{common_name}.pem",
+        cwd=directory,
+    )  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def pki(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """CA + leaf certificates (EC P-256, SAN 127.0.0.1) made with the openssl CLI."""
+    if shutil.which("openssl") is None:
+        pytest.skip("the openssl CLI is not installed: cannot make test certificates")
+    directory = tmp_path_factory.mktemp("pki")
+    _make_ca(directory, "test-ca")
+    _make_ca(directory, "rogue-ca")
+    for serial, name in enumerate(
+        ("gyrotherm-router", "gyrotherm-daemon", "gyrotherm-viewer", "gyrotherm-peer"), start=2
+    ):
+        _make_leaf(directory, "test-ca", name, serial)
+    _make_leaf(directory, "rogue-ca", "gyrotherm-rogue", 9)
+    return directory
+
+
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def _tls_files(config: zenoh.Config, pki: Path, ca: str, name: str) -> None:
+    config.insert_json5(
+        "transport/link/tls/root_ca_certificate", json.dumps(str(pki / f"{ca}.pem"))
+    )
+    for direction in ("listen", "connect"):
+        config.insert_json5(
+            f"transport/link/tls/{direction}_certificate", json.dumps(str(pki / f"{name}.pem"))
+        )
+        config.insert_json5(
+            f"transport/link/tls/{direction}_private_key", json.dumps(str(pki / f"{name}-key.pem"))
+        )
+
+
+def _tls_node(
+    pki: Path, name: str, *, mode: str, listen: list[str], connect: list[str], ca: str = "test-ca"
+) -> zenoh.Config:
+    """tls-mutual.json5 with this node's files and endpoints."""
+    config = zenoh.Config.from_file(str(DEPLOY_ZENOH / "tls-mutual.json5"))
+    config.insert_json5("mode", json.dumps(mode))
+    config.insert_json5("listen/endpoints", json.dumps(listen))
+    config.insert_json5("connect/endpoints", json.dumps(connect))
+    _tls_files(config, pki, ca, name)
+    return config
+
+
+@contextmanager
+def _opened(config: zenoh.Config) -> Iterator[zenoh.Session]:
+    session = zenoh.open(config)
+    try:
+        yield session
+    finally:
+        session.close()
+
+
+def _wait_matching(publisher: Any) -> bool:
+    """Wait until the publisher sees a matching subscriber (declarations arrived)."""
+    matched = threading.Event()
+
+    def on_status(status: Any) -> None:
+        if status.matching:
+            matched.set()
+
+    listener = publisher.declare_matching_listener(on_status)
+    try:
+        return bool(publisher.matching_status) or matched.wait(WAIT_S)
+    finally:
+        listener.undeclare()
+
+
+def test_mutual_tls_peers_exchange_a_sample(pki: Path) -> None:
+    endpoint = f"tls/127.0.0.1:{_free_port()}"
+    received: list[bytes] = []
+    got = threading.Event()
+
+    def on_sample(sample: Any) -> None:
+        received.append(bytes(sample.payload.to_bytes()))
+        got.set()
+
+    listener_cfg = _tls_node(pki, "gyrotherm-peer", mode="peer", listen=[endpoint], connect=[])
+    talker_cfg = _tls_node(pki, "gyrotherm-daemon", mode="peer", listen=[], connect=[endpoint])
+    with _opened(listener_cfg) as listener, _opened(talker_cfg) as talker:
+        subscriber = listener.declare_subscriber("gyrotherm/test/imu0/rate", on_sample)
+        publisher = talker.declare_publisher("gyrotherm/test/imu0/rate")
+        assert _wait_matching(publisher)
+        publisher.put(b"rate over mTLS")
+        assert got.wait(WAIT_S)
+        assert received == [b"rate over mTLS"]
+        subscriber.undeclare()
+        publisher.undeclare()
+
+        # A certificate signed by another CA is refused by the listener.
+        rogue_cfg = _tls_node(
+            pki, "gyrotherm-rogue", mode="client", listen=[], connect=[endpoint], ca="test-ca"
+        )
+        with pytest.raises(zenoh.ZError):
+            zenoh.open(rogue_cfg).close()
+
+
+def test_acl_router_drops_a_viewers_publication(pki: Path) -> None:
+    endpoint = f"tls/127.0.0.1:{_free_port()}"
+    router_cfg = zenoh.Config.from_file(str(DEPLOY_ZENOH / "acl-router.json5"))
+    router_cfg.insert_json5("listen/endpoints", json.dumps([endpoint]))
+    _tls_files(router_cfg, pki, "test-ca", "gyrotherm-router")
+    key = "gyrotherm/veh1/imu0/rate"
+
+    daemon_saw: list[bytes] = []
+    daemon_saw_at_query: list[list[bytes]] = []
+    viewer_saw: list[bytes] = []
+    viewer_got_sample = threading.Event()
+
+    def daemon_on_sample(sample: Any) -> None:
+        daemon_saw.append(bytes(sample.payload.to_bytes()))
+
+    def daemon_on_query(query: Any) -> None:
+        # The viewer's put travelled the same link just before this query:
+        # had the router forwarded it, the daemon would have seen it by now.
+        daemon_saw_at_query.append(list(daemon_saw))
+        query.reply(query.key_expr, b'{"schema": "gyrotherm.calibration"}')
+
+    def viewer_on_sample(sample: Any) -> None:
+        viewer_saw.append(bytes(sample.payload.to_bytes()))
+        viewer_got_sample.set()
+
+    def client(name: str) -> zenoh.Config:
+        return _tls_node(pki, name, mode="client", listen=[], connect=[endpoint])
+
+    with ExitStack() as stack:
+        stack.enter_context(_opened(router_cfg))
+        daemon = stack.enter_context(_opened(client("gyrotherm-daemon")))
+        viewer = stack.enter_context(_opened(client("gyrotherm-viewer")))
+        daemon.declare_subscriber("gyrotherm/**", daemon_on_sample)
+        daemon.declare_queryable("gyrotherm/veh1/imu0/calibration", daemon_on_query)
+        viewer.declare_subscriber("gyrotherm/**", viewer_on_sample)
+
+        # Allowed: the daemon publishes, the viewer receives.
+        daemon_pub = daemon.declare_publisher(key)
+        assert _wait_matching(daemon_pub)
+        daemon_pub.put(b"from daemon")
+        assert viewer_got_sample.wait(WAIT_S)
+        assert viewer_saw == [b"from daemon"]
+
+        # Denied: the viewer publishes under gyrotherm/**; then it queries.
+        viewer_pub = viewer.declare_publisher(key)
+        assert _wait_matching(viewer_pub)  # it knows the daemon subscribes
+        viewer_pub.put(b"forged by viewer")
+        replies = list(viewer.get("gyrotherm/veh1/imu0/calibration", timeout=WAIT_S))
+        assert [bytes(r.ok.payload.to_bytes()) for r in replies if r.ok is not None] == [
+            b'{"schema": "gyrotherm.calibration"}'
+        ]
+        assert daemon_saw_at_query == [[b"from daemon"]]
+        assert b"forged by viewer" not in daemon_saw
