@@ -1,0 +1,253 @@
+"""Frame sources and sinks: the one interface real CAN buses and the simulator share.
+
+Contract (python-can's :class:`can.BusABC` shape, with units in the names):
+
+* :class:`FrameSink` ``.send(msg, timeout_s=None)`` hands one classic CAN frame
+  (:class:`can.Message`) to the bus; ``timeout_s`` bounds how long it may block
+  (``None``: the implementation's default).
+* :class:`FrameSource` ``.recv(timeout_s=None)`` returns the next frame, or
+  ``None`` once ``timeout_s`` seconds passed without one (``None`` waits
+  forever, ``0`` polls). Iterating a source yields frames until it is shut down.
+* Both have an idempotent ``shutdown()``, an ``is_shutdown`` property, and are
+  context managers that shut down on exit.
+
+:class:`BusAdapter` makes any python-can bus (``virtual``, ``socketcand``,
+``socketcan`` on a vehicle) both a source and a sink, so code written against
+these interfaces runs unchanged on a real bus or on the simulator's
+:class:`~gyrotherm.sim._socketcand.SocketcandServer`. :func:`open_bus` opens the
+python-can buses gyrotherm supports and rejects bad options with
+:class:`gyrotherm.ConfigError` naming the field, the limit and the value.
+"""
+
+from __future__ import annotations
+
+import errno
+import logging
+import threading
+from abc import ABC, abstractmethod
+from collections.abc import Iterator
+from types import TracebackType
+from typing import Any, Self
+
+import can
+
+from gyrotherm._errors import ConfigError
+
+INTERFACES = ("virtual", "socketcan", "socketcand")
+"""The python-can interfaces :func:`open_bus` accepts."""
+
+_ITER_POLL_S = 0.1  # how often an iterating consumer re-checks ``is_shutdown``
+_SOCKETCAND_LOGGER = "can.interfaces.socketcand.socketcand"
+
+
+class _DropPartialReadWarnings(logging.Filter):
+    """Drop python-can's socketcand warning for a TCP read that ends mid-frame.
+
+    Its client reads 1024 bytes at a time and logs "Got incomplete message =>
+    waiting for more data" at WARNING each time a read splits a frame, which is
+    normal TCP behaviour and happens thousands of times a second at high rates.
+    """
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not str(record.msg).startswith("Got incomplete message")
+
+
+def _quiet_socketcand_client() -> None:
+    logger = logging.getLogger(_SOCKETCAND_LOGGER)
+    if not any(isinstance(f, _DropPartialReadWarnings) for f in logger.filters):
+        logger.addFilter(_DropPartialReadWarnings())
+
+
+class _Endpoint(ABC):
+    """Common lifetime of sources and sinks: idempotent shutdown, context manager."""
+
+    @property
+    @abstractmethod
+    def is_shutdown(self) -> bool:
+        """True once :meth:`shutdown` has been called."""
+
+    @abstractmethod
+    def shutdown(self) -> None:
+        """Release every resource; calling it again does nothing."""
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.shutdown()
+
+
+class FrameSink(_Endpoint):
+    """Something classic CAN frames can be sent to."""
+
+    @abstractmethod
+    def send(self, msg: can.Message, timeout_s: float | None = None) -> None:
+        """Send one frame, blocking at most ``timeout_s`` seconds (``None``: default)."""
+
+
+class FrameSource(_Endpoint):
+    """Something classic CAN frames can be received from."""
+
+    @abstractmethod
+    def recv(self, timeout_s: float | None = None) -> can.Message | None:
+        """Next frame, or ``None`` after ``timeout_s`` seconds (``None``: wait forever)."""
+
+    def __iter__(self) -> Iterator[can.Message]:
+        """Yield frames as they arrive until the source is shut down."""
+        while True:
+            msg = self.recv(timeout_s=_ITER_POLL_S)
+            if msg is not None:
+                yield msg
+            elif self.is_shutdown:
+                return
+
+
+class BusAdapter(FrameSource, FrameSink):
+    """A python-can bus seen as a :class:`FrameSource` and a :class:`FrameSink`.
+
+    The adapter owns the bus: :meth:`shutdown` shuts it down (once). python-can
+    errors (:class:`can.CanError`) propagate unchanged from ``send``/``recv``.
+    """
+
+    def __init__(self, bus: can.BusABC) -> None:
+        self._bus = bus
+        self._lock = threading.Lock()
+        self._closed = False
+
+    @property
+    def bus(self) -> can.BusABC:
+        """The wrapped python-can bus."""
+        return self._bus
+
+    @property
+    def is_shutdown(self) -> bool:
+        return self._closed
+
+    def send(self, msg: can.Message, timeout_s: float | None = None) -> None:
+        self._bus.send(msg, timeout=timeout_s)
+
+    def recv(self, timeout_s: float | None = None) -> can.Message | None:
+        if self._closed:
+            return None
+        msg: can.Message | None = self._bus.recv(timeout=timeout_s)
+        return msg
+
+    def shutdown(self) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        self._bus.shutdown()
+
+    def __repr__(self) -> str:
+        return f"BusAdapter({self._bus.channel_info!r})"
+
+
+def _check_options(
+    interface: str,
+    channel: str,
+    bitrate: int | None,
+    host: str | None,
+    port: int | None,
+    receive_own_messages: bool,
+) -> None:
+    if interface not in INTERFACES:
+        raise ConfigError(f"interface: must be one of {', '.join(INTERFACES)}, got {interface!r}")
+    if not isinstance(channel, str) or not channel or len(channel) > 16 or " " in channel:
+        raise ConfigError(
+            f"channel: must be a CAN interface name of 1 to 16 characters without spaces,"
+            f" got {channel!r}"
+        )
+    if bitrate is not None and (
+        isinstance(bitrate, bool) or not isinstance(bitrate, int) or not 0 < bitrate <= 1_000_000
+    ):
+        raise ConfigError(f"bitrate: must be an integer in 1..1000000 bit/s, got {bitrate!r}")
+    if interface == "socketcand":
+        if not isinstance(host, str) or not host:
+            raise ConfigError(f"host: interface 'socketcand' needs a host name, got {host!r}")
+        if isinstance(port, bool) or not isinstance(port, int) or not 0 < port <= 65535:
+            raise ConfigError(
+                f"port: interface 'socketcand' needs a port in 1..65535, got {port!r}"
+            )
+        if receive_own_messages:
+            raise ConfigError(
+                "receive_own_messages: not supported by interface 'socketcand', got True"
+            )
+    else:
+        if host is not None:
+            raise ConfigError(f"host: only interface 'socketcand' takes a host, got {host!r}")
+        if port is not None:
+            raise ConfigError(f"port: only interface 'socketcand' takes a port, got {port!r}")
+
+
+def _socketcan_error(channel: str, exc: OSError) -> ConfigError:
+    if exc.errno == errno.EAFNOSUPPORT:
+        why = (
+            "SocketCAN is unavailable on this machine: the kernel refuses AF_CAN sockets"
+            " (no CAN support, e.g. inside a container)"
+        )
+    elif exc.errno == errno.ENODEV:
+        why = f"no CAN network interface named {channel!r} (see `ip link`)"
+    else:
+        why = "SocketCAN could not open the interface"
+    return ConfigError(
+        f"interface 'socketcan', channel {channel!r}: {why} ({exc});"
+        " use interface 'socketcand' (e.g. the gyrotherm simulator) or 'virtual' instead"
+    )
+
+
+def open_bus(
+    *,
+    interface: str,
+    channel: str,
+    bitrate: int | None = None,
+    host: str | None = None,
+    port: int | None = None,
+    receive_own_messages: bool = False,
+) -> BusAdapter:
+    """Open a python-can bus as a :class:`BusAdapter`.
+
+    * ``virtual``: python-can's in-process bus; ``channel`` names it.
+    * ``socketcan``: a Linux CAN interface (``can0`` on a vehicle); ``bitrate`` is
+      informative only (set it with ``ip link``).
+    * ``socketcand``: a socketcand server at ``host``:``port`` serving ``channel``
+      (python-can retries the TCP connection for up to 10 s). python-can's
+      per-read "Got incomplete message" warnings are filtered out (normal TCP
+      splitting, thousands a second at high rates).
+
+    Configuration files and ``CAN_*`` environment variables of python-can are
+    ignored: only these arguments count. Raises :class:`gyrotherm.ConfigError`
+    naming the field for a bad option, and (chained from the cause) when the bus
+    cannot be opened.
+    """
+    _check_options(interface, channel, bitrate, host, port, receive_own_messages)
+    kwargs: dict[str, Any] = {}
+    if bitrate is not None:
+        kwargs["bitrate"] = bitrate
+    if interface == "socketcand":
+        kwargs.update(host=host, port=port)
+        _quiet_socketcand_client()
+    else:
+        kwargs["receive_own_messages"] = receive_own_messages
+    try:
+        bus = can.Bus(interface=interface, channel=channel, ignore_config=True, **kwargs)
+    except OSError as exc:
+        if interface == "socketcan":
+            raise _socketcan_error(channel, exc) from exc
+        where = f" at {host}:{port}" if interface == "socketcand" else ""
+        raise ConfigError(
+            f"interface {interface!r}, channel {channel!r}{where}: cannot open the bus ({exc})"
+        ) from exc
+    except can.CanError as exc:
+        if interface == "socketcan" and isinstance(exc.__cause__, OSError):
+            raise _socketcan_error(channel, exc.__cause__) from exc
+        where = f" at {host}:{port}" if interface == "socketcand" else ""
+        raise ConfigError(
+            f"interface {interface!r}, channel {channel!r}{where}: cannot open the bus ({exc})"
+        ) from exc
+    return BusAdapter(bus)
