@@ -315,7 +315,6 @@ def test_slow_client_is_bounded_and_counted() -> None:
             assert slow.frames_dropped > 0
             assert slow.frames_sent + slow.frames_dropped <= n
             assert n - slow.frames_sent - slow.frames_dropped <= 2 * limit  # queued + in flight
-            assert not server.flush(timeout_s=0.05)
 
 
 def test_too_many_clients_are_refused() -> None:
