@@ -26,7 +26,7 @@ demo: $(STAMP)
 	$(PY) -m gyrotherm demo
 
 test: $(DEVSTAMP)
-	$(VENV)/bin/ruff check src tests bench
+	$(VENV)/bin/ruff check
 	$(VENV)/bin/mypy src
 	$(PY) -m pytest -q
 

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 
 from gyrotherm import __version__
 from gyrotherm._errors import GyrothermError
-from gyrotherm.cli import _offline
+from gyrotherm.cli import _offline, _run
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -20,6 +20,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     sub = parser.add_subparsers(dest="command", required=True)
     _offline.register(sub)
+    _run.register(sub)
     demo = sub.add_parser("demo", help="the main job on embedded defaults")
     demo.add_argument("--seed", type=int, default=1)
     demo.add_argument("--rate-hz", type=float, default=10.0)

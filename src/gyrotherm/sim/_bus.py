@@ -212,7 +212,8 @@ def open_bus(
 ) -> BusAdapter:
     """Open a python-can bus as a :class:`BusAdapter`.
 
-    * ``virtual``: python-can's in-process bus; ``channel`` names it.
+    * ``virtual``: python-can's in-process bus; ``channel`` names it. Frames keep
+      the sender's timestamps (``preserve_timestamps``).
     * ``socketcan``: a Linux CAN interface (``can0`` on a vehicle); ``bitrate`` is
       informative only (set it with ``ip link``).
     * ``socketcand``: a socketcand server at ``host``:``port`` serving ``channel``
@@ -234,6 +235,9 @@ def open_bus(
         _quiet_socketcand_client()
     else:
         kwargs["receive_own_messages"] = receive_own_messages
+    if interface == "virtual":
+        # keep the sender's timestamps: they carry the sensor (simulation) time
+        kwargs["preserve_timestamps"] = True
     try:
         bus = can.Bus(interface=interface, channel=channel, ignore_config=True, **kwargs)
     except OSError as exc:

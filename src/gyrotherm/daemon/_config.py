@@ -1,0 +1,223 @@
+"""The daemon's TOML configuration, validated into frozen, typed objects.
+
+Example (every key; relative paths are relative to the config file)::
+
+    vehicle = "veh01"                 # key prefix gyrotherm/<vehicle>/<sensor>/
+    sensor = "imu0"
+    calibration = "/var/lib/gyrotherm/imu0.calibration.json"   # optional
+    health_period_s = 1.0             # health publication period, s
+
+    [can]
+    interface = "socketcan"           # socketcan | socketcand | virtual
+    channel = "can0"
+    bitrate = 500000                  # bit/s, optional (socketcan)
+    host = "127.0.0.1"                # socketcand only
+    port = 29536                      # socketcand only
+    dbc = "gyro.dbc"                  # optional, default: the shipped DBC
+    on_counter_jump = "deliver"       # deliver | reject
+    recv_timeout_s = 0.2              # longest wait for a frame before housekeeping, s
+
+    [can.signals]                     # optional: message/signal names in your DBC
+    rate_message = "GyroRate"         # (all SignalMap fields, see docs/wire-format.md)
+
+    [estimator]                       # optional, used only without a calibration
+    stale_after_s = 5.0
+
+    [zenoh]
+    config = "/etc/gyrotherm/zenoh.json5"   # a Zenoh JSON5 file, passed through; or:
+    mode = "peer"                           # peer | client | router
+    listen = ["tcp/127.0.0.1:7447"]
+    connect = []
+    congestion_control = "block"            # block | drop (rate messages)
+
+Errors are :class:`gyrotherm.ConfigError` naming the file and the key.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from gyrotherm._errors import ConfigError
+from gyrotherm._zenoh import keys
+from gyrotherm.codecs import DEFAULT_DBC_PATH, SignalMap
+from gyrotherm.estimators import EstimatorConfig
+
+INTERFACES = ("socketcan", "socketcand", "virtual")
+
+
+@dataclass(frozen=True)
+class CanConfig:
+    """Where the frames come from and how to read them."""
+
+    interface: str = "socketcan"
+    channel: str = "can0"
+    bitrate: int | None = None
+    host: str | None = None
+    port: int | None = None
+    dbc: Path = DEFAULT_DBC_PATH
+    signals: SignalMap = field(default_factory=SignalMap.default)
+    on_counter_jump: str = "deliver"
+    recv_timeout_s: float = 0.2
+
+
+@dataclass(frozen=True)
+class ZenohConfig:
+    """The Zenoh session: a user's JSON5 file, or loopback-safe explicit endpoints."""
+
+    config_file: Path | None = None
+    mode: str = "peer"
+    listen: tuple[str, ...] = ("tcp/127.0.0.1:7447",)
+    connect: tuple[str, ...] = ()
+    congestion_control: str = "block"
+
+
+@dataclass(frozen=True)
+class DaemonConfig:
+    """Everything ``gyrotherm run`` needs."""
+
+    vehicle: str
+    sensor: str
+    can: CanConfig
+    zenoh: ZenohConfig
+    calibration: Path | None = None
+    estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
+    health_period_s: float = 1.0
+    source: str = "<memory>"
+
+
+def _table(data: dict[str, Any], key: str, where: str) -> dict[str, Any]:
+    value = data.get(key, {})
+    if not isinstance(value, dict):
+        raise ConfigError(f"{where}: [{key}] must be a table, got {value!r}")
+    return value
+
+
+def _take(table: dict[str, Any], key: str, kind: type | tuple[type, ...], where: str,
+          default: Any) -> Any:
+    if key not in table:
+        return default
+    value = table[key]
+    if (isinstance(value, bool) and kind is not bool) or not isinstance(value, kind):
+        want = kind.__name__ if isinstance(kind, type) else " or ".join(k.__name__ for k in kind)
+        raise ConfigError(f"{where}: key {key!r} must be {want}, got {value!r}")
+    return value
+
+
+def _unknown(table: dict[str, Any], known: set[str], where: str) -> None:
+    extra = sorted(set(table) - known)
+    if extra:
+        raise ConfigError(f"{where}: unknown key(s) {extra}; known: {sorted(known)}")
+
+
+def _bounded(value: float, lo: float, hi: float, what: str) -> float:
+    if not (math.isfinite(value) and lo <= value <= hi):
+        raise ConfigError(f"{what} = {value!r} is outside [{lo:g}, {hi:g}]")
+    return float(value)
+
+
+def _path(base: Path, value: str) -> Path:
+    p = Path(value).expanduser()
+    return p if p.is_absolute() else base / p
+
+
+def parse_config(data: dict[str, Any], *, source: str = "<memory>",
+                 base_dir: Path | None = None) -> DaemonConfig:
+    """Validate a parsed TOML document."""
+    base = base_dir or Path.cwd()
+    _unknown(data, {"vehicle", "sensor", "calibration", "health_period_s", "can", "estimator",
+                    "zenoh"}, source)
+    vehicle = _take(data, "vehicle", str, source, None)
+    sensor = _take(data, "sensor", str, source, None)
+    if vehicle is None or sensor is None:
+        raise ConfigError(f"{source}: keys 'vehicle' and 'sensor' are required")
+    keys(vehicle, sensor)  # validates the names
+    cal = _take(data, "calibration", str, source, None)
+    health = _bounded(_take(data, "health_period_s", (int, float), source, 1.0), 0.05, 3600,
+                      f"{source}: health_period_s")
+
+    where = f"{source}: [can]"
+    c = _table(data, "can", source)
+    _unknown(c, {"interface", "channel", "bitrate", "host", "port", "dbc", "signals",
+                 "on_counter_jump", "recv_timeout_s"}, where)
+    interface = _take(c, "interface", str, where, "socketcan")
+    if interface not in INTERFACES:
+        raise ConfigError(f"{where}: interface {interface!r} is not one of {INTERFACES}")
+    bitrate = _take(c, "bitrate", int, where, None)
+    if bitrate is not None and not 10_000 <= bitrate <= 8_000_000:
+        raise ConfigError(f"{where}: bitrate = {bitrate} is outside [10000, 8000000] bit/s")
+    port = _take(c, "port", int, where, None)
+    if port is not None and not 1 <= port <= 65535:
+        raise ConfigError(f"{where}: port = {port} is outside [1, 65535]")
+    host = _take(c, "host", str, where, None)
+    if interface == "socketcand" and (host is None or port is None):
+        raise ConfigError(f"{where}: interface 'socketcand' needs 'host' and 'port'")
+    jump = _take(c, "on_counter_jump", str, where, "deliver")
+    if jump not in ("deliver", "reject"):
+        raise ConfigError(f"{where}: on_counter_jump {jump!r} is not 'deliver' or 'reject'")
+    dbc = _take(c, "dbc", str, where, None)
+    signals_table = _table(c, "signals", where)
+    signals = (SignalMap.from_dict(signals_table, source=f"{where}.signals") if signals_table
+               else SignalMap.default())
+    can = CanConfig(
+        interface=interface,
+        channel=_take(c, "channel", str, where, "can0"),
+        bitrate=bitrate,
+        host=host,
+        port=port,
+        dbc=DEFAULT_DBC_PATH if dbc is None else _path(base, dbc),
+        signals=signals,
+        on_counter_jump=jump,
+        recv_timeout_s=_bounded(_take(c, "recv_timeout_s", (int, float), where, 0.2), 0.001,
+                                2.0, f"{where}: recv_timeout_s"),
+    )
+
+    where = f"{source}: [zenoh]"
+    z = _table(data, "zenoh", source)
+    _unknown(z, {"config", "mode", "listen", "connect", "congestion_control"}, where)
+    zfile = _take(z, "config", str, where, None)
+    if zfile is not None and ({"mode", "listen", "connect"} & set(z)):
+        raise ConfigError(f"{where}: 'config' excludes 'mode', 'listen' and 'connect'")
+    listen = _take(z, "listen", list, where, ["tcp/127.0.0.1:7447"])
+    connect = _take(z, "connect", list, where, [])
+    for name, eps in (("listen", listen), ("connect", connect)):
+        if not all(isinstance(e, str) for e in eps):
+            raise ConfigError(f"{where}: {name} must be a list of endpoint strings, got {eps!r}")
+    congestion = _take(z, "congestion_control", str, where, "block")
+    if congestion not in ("block", "drop"):
+        raise ConfigError(f"{where}: congestion_control {congestion!r} is not 'block' or 'drop'")
+    zenoh = ZenohConfig(
+        config_file=None if zfile is None else _path(base, zfile),
+        mode=_take(z, "mode", str, where, "peer"),
+        listen=tuple(listen),
+        connect=tuple(connect),
+        congestion_control=congestion,
+    )
+    est_table = _table(data, "estimator", source)
+    return DaemonConfig(
+        vehicle=vehicle,
+        sensor=sensor,
+        can=can,
+        zenoh=zenoh,
+        calibration=None if cal is None else _path(base, cal),
+        estimator=EstimatorConfig.from_dict(est_table, where=f"{source}: [estimator]"),
+        health_period_s=health,
+        source=source,
+    )
+
+
+def load_config(path: str | Path) -> DaemonConfig:
+    """Read and validate a TOML config file."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{p}: cannot read config file: {exc}") from exc
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{p}: not valid TOML: {exc}") from exc
+    return parse_config(data, source=str(p), base_dir=p.parent.resolve())

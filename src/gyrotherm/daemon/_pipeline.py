@@ -1,0 +1,228 @@
+"""The per-frame pipeline: decode → estimate → compensate → encode → publish.
+
+Pure processing, no I/O of its own: frames go in through :meth:`Pipeline.process`,
+payloads leave through a :class:`Sink` (Zenoh publishers in the daemon, lists in
+tests). Per rate frame it only decodes, subtracts a cached bias, encodes and
+publishes; the estimator and the bias polynomial run per *temperature* frame,
+where T and ΔT change.
+
+Accounting: every frame handed to :meth:`process` is either published (a rate
+frame as a ``rate`` message, a temperature frame as a ``state`` message) or
+dropped with a reason (the decoder's reject reasons, ``publish_error``), so
+``frames_received == frames_published + sum(drops.values())`` at all times.
+Before the first temperature frame rates are published uncorrected
+(bias 0) with ``TEMPERATURE_STALE | ESTIMATOR_WARMUP`` set.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from gyrotherm._errors import PublishError
+from gyrotherm.codecs import FrameDecoder, RateSample, Rejection, TemperatureSample
+from gyrotherm.codecs._wire import (
+    HealthMessage,
+    RateMessage,
+    StateMessage,
+    StatusFlags,
+    encode_rate,
+    encode_state,
+)
+from gyrotherm.compensation import Calibration
+from gyrotherm.estimators import EstimatorConfig, TemperatureEstimate, TemperatureEstimator
+
+#: Temperature readings fused before the estimate counts as converged.
+WARMUP_UPDATES = 20
+_ZERO = (0.0, 0.0, 0.0)
+
+
+class Sink(Protocol):
+    """Where payloads go; each call may raise :class:`PublishError`."""
+
+    def put_rate(self, payload: bytes) -> None: ...
+
+    def put_state(self, payload: bytes) -> None: ...
+
+
+@dataclass(frozen=True)
+class Counters:
+    """Frame accounting snapshot."""
+
+    frames_received: int
+    frames_published: int
+    rate_published: int
+    state_published: int
+    drops: dict[str, int]
+    counter_jumps: int
+
+
+class Pipeline:
+    """Frame processing for one sensor; not thread-safe (one receiving thread)."""
+
+    def __init__(
+        self,
+        decoder: FrameDecoder,
+        sink: Sink,
+        *,
+        calibration: Calibration | None,
+        estimator: EstimatorConfig | None = None,
+    ) -> None:
+        self._decoder = decoder
+        self._sink = sink
+        self._default_estimator = estimator or EstimatorConfig()
+        self._received = 0
+        self._rate_published = 0
+        self._state_published = 0
+        self._drops: Counter[str] = Counter()
+        self._jumps = 0
+        self._rate_seq = 0
+        self._state_seq = 0
+        self._last_counter: int | None = None
+        self.last_sensor_time_s: float | None = None
+        self._last_temperature_s = -math.inf
+        self.calibration: Calibration | None = None
+        self._estimator = TemperatureEstimator(self._default_estimator)
+        self._bias: tuple[float, float, float] = _ZERO
+        self._flags = StatusFlags.TEMPERATURE_STALE | StatusFlags.ESTIMATOR_WARMUP
+        self.last_estimate: TemperatureEstimate | None = None
+        self.set_calibration(calibration)
+
+    # --- configuration ---------------------------------------------------------------
+
+    def set_calibration(self, calibration: Calibration | None) -> None:
+        """Swap the calibration; a new estimator setting restarts the estimator."""
+        est = calibration.estimator if calibration else self._default_estimator
+        if est != self._estimator.config:
+            self._estimator = TemperatureEstimator(est)
+            self.last_estimate = None
+        self.calibration = calibration
+        self._refresh_bias()
+
+    @property
+    def stale_after_s(self) -> float:
+        return self._estimator.config.stale_after_s
+
+    # --- hot path ----------------------------------------------------------------------
+
+    def process(self, msg: Any, receive_time_s: float) -> None:
+        """Handle one CAN frame received at wall-clock ``receive_time_s`` (s)."""
+        self._received += 1
+        result = self._decoder.decode(msg)
+        kind = type(result)
+        if kind is RateSample:
+            self._on_rate(result, receive_time_s)  # type: ignore[arg-type]
+        elif kind is TemperatureSample:
+            self._on_temperature(result, receive_time_s)  # type: ignore[arg-type]
+        else:
+            assert isinstance(result, Rejection)
+            self._drops[result.reason.value] += 1
+
+    def _on_rate(self, s: RateSample, receive_time_s: float) -> None:
+        t = s.time_s
+        self.last_sensor_time_s = t
+        flags = self._flags
+        if t - self._last_temperature_s > self._estimator.config.stale_after_s:
+            flags |= StatusFlags.TEMPERATURE_STALE
+        if s.counter is not None:
+            last = self._last_counter
+            if last is not None and s.counter != (last + 1) & 0xF:
+                flags |= StatusFlags.COUNTER_JUMP
+                self._jumps += 1
+            self._last_counter = s.counter
+        b = self._bias
+        x, y, z = s.rate_x_dps, s.rate_y_dps, s.rate_z_dps
+        payload = encode_rate(RateMessage(
+            self._rate_seq, t, receive_time_s, (x - b[0], y - b[1], z - b[2]), (x, y, z), b,
+            flags))
+        try:
+            self._sink.put_rate(payload)
+        except PublishError:
+            self._drops["publish_error"] += 1
+            return
+        self._rate_seq += 1
+        self._rate_published += 1
+
+    def _on_temperature(self, s: TemperatureSample, receive_time_s: float) -> None:
+        self.last_estimate = self._estimator.update(s.time_s, s.temperature_c)
+        self._last_temperature_s = s.time_s
+        self._refresh_bias()
+        self._publish_state(s.time_s, receive_time_s)
+
+    # --- temperature-rate work ---------------------------------------------------------
+
+    def _refresh_bias(self) -> None:
+        est = self.last_estimate
+        flags = StatusFlags.NONE
+        if est is None or math.isnan(est.temperature_c):
+            self._bias = _ZERO
+            flags |= StatusFlags.TEMPERATURE_STALE | StatusFlags.ESTIMATOR_WARMUP
+        else:
+            if est.stale:
+                flags |= StatusFlags.TEMPERATURE_STALE
+            if est.rejected:
+                flags |= StatusFlags.ESTIMATOR_REJECTED
+            if est.updates < WARMUP_UPDATES:
+                flags |= StatusFlags.ESTIMATOR_WARMUP
+            if self.calibration is None:
+                self._bias = _ZERO
+            else:
+                b = self.calibration.bias_at(est.temperature_c, est.delta_t_c)
+                self._bias = (b.bias_dps.get("x", 0.0), b.bias_dps.get("y", 0.0),
+                              b.bias_dps.get("z", 0.0))
+                if b.t_clamped:
+                    flags |= StatusFlags.T_CLAMPED
+                if b.dt_clamped:
+                    flags |= StatusFlags.DELTA_T_CLAMPED
+        if self.calibration is None:
+            flags |= StatusFlags.NO_CALIBRATION
+        self._flags = flags
+
+    def _publish_state(self, sensor_time_s: float, receive_time_s: float) -> None:
+        est = self.last_estimate
+        nan = math.nan
+        msg = StateMessage(
+            self._state_seq, sensor_time_s, receive_time_s,
+            est.temperature_c if est else nan, est.temperature_std_c if est else nan,
+            est.delta_t_c if est else nan, est.delta_t_std_c if est else nan,
+            self._bias, self._flags)
+        try:
+            self._sink.put_state(encode_state(msg))
+        except PublishError:
+            self._drops["publish_error"] += 1
+            return
+        self._state_seq += 1
+        self._state_published += 1
+
+    def tick(self) -> None:
+        """Housekeeping (≈ once a second): predict-only when temperature frames stopped."""
+        t = self.last_sensor_time_s
+        if (t is not None and self._estimator.initialised
+                and t - self._last_temperature_s > self._estimator.config.stale_after_s):
+            self.last_estimate = self._estimator.predict(t)
+            self._refresh_bias()
+
+    # --- reporting ---------------------------------------------------------------------
+
+    @property
+    def flags(self) -> StatusFlags:
+        return self._flags
+
+    def counters(self) -> Counters:
+        return Counters(
+            frames_received=self._received,
+            frames_published=self._rate_published + self._state_published,
+            rate_published=self._rate_published,
+            state_published=self._state_published,
+            drops=dict(self._drops),
+            counter_jumps=self._jumps,
+        )
+
+    def health(self, *, seq: int, receive_time_s: float, uptime_s: float,
+               calibration_id: str) -> HealthMessage:
+        c = self.counters()
+        return HealthMessage(seq, self.last_sensor_time_s, receive_time_s, uptime_s,
+                             c.frames_received, c.frames_published, c.drops, self._flags,
+                             calibration_id)

@@ -1,0 +1,264 @@
+"""The daemon: a python-can bus in, Zenoh out, under systemd.
+
+Loop (one thread): ``recv(timeout)`` a frame → :class:`Pipeline` → Zenoh
+publishers. Housekeeping runs from the same loop at least every
+``recv_timeout_s``: the health message every ``health_period_s``, predict-only
+estimation when temperature frames stop, the systemd watchdog (so a stuck
+pipeline stops petting it and gets restarted), STATUS= lines and calibration
+reloads.
+
+Signals: SIGTERM and SIGINT stop the loop (publishers undeclared, session and
+bus closed); SIGHUP reloads the calibration atomically — a bad file keeps the
+old calibration, logs why and counts ``reload_failures``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import signal
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+import zenoh
+
+from gyrotherm._errors import CalibrationError, GyrothermError, PublishError
+from gyrotherm._zenoh import keys, session_config
+from gyrotherm.codecs import FrameDecoder
+from gyrotherm.codecs._wire import (
+    CalibrationInfo,
+    encode_calibration_info,
+    encode_health,
+)
+from gyrotherm.compensation import Calibration, load_calibration
+from gyrotherm.daemon._config import DaemonConfig
+from gyrotherm.daemon._pipeline import Pipeline
+from gyrotherm.daemon._sdnotify import Notifier
+from gyrotherm.sim import FrameSource, open_bus
+
+log = logging.getLogger("gyrotherm.daemon")
+
+
+def calibration_id(path: Path) -> str:
+    """First 16 hex digits of the file's sha256: names the loaded calibration."""
+    return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+
+
+class _ZenohSink:
+    """Pipeline sink backed by Zenoh publishers."""
+
+    def __init__(self, session: zenoh.Session, config: DaemonConfig) -> None:
+        k = keys(config.vehicle, config.sensor)
+        cc = (zenoh.CongestionControl.BLOCK if config.zenoh.congestion_control == "block"
+              else zenoh.CongestionControl.DROP)
+        self.rate = session.declare_publisher(k.rate, congestion_control=cc)
+        self.state = session.declare_publisher(k.state, congestion_control=cc)
+        self.health = session.declare_publisher(k.health)
+        self._put_rate = self.rate.put
+        self._put_state = self.state.put
+
+    def put_rate(self, payload: bytes) -> None:
+        try:
+            self._put_rate(payload)
+        except zenoh.ZError as exc:
+            raise PublishError(f"rate: {exc}") from exc
+
+    def put_state(self, payload: bytes) -> None:
+        try:
+            self._put_state(payload)
+        except zenoh.ZError as exc:
+            raise PublishError(f"state: {exc}") from exc
+
+    def undeclare(self) -> None:
+        for p in (self.rate, self.state, self.health):
+            p.undeclare()
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """What a daemon run did (returned by :meth:`Daemon.run`)."""
+
+    frames_received: int
+    frames_published: int
+    drops: dict[str, int]
+    reloads: int
+    reload_failures: int
+    uptime_s: float
+
+
+class Daemon:
+    """The gyrotherm service for one sensor."""
+
+    def __init__(self, config: DaemonConfig, *, notifier: Notifier | None = None) -> None:
+        self.config = config
+        self._notifier = notifier or Notifier.from_environment()
+        self._stop = threading.Event()
+        self._reload = threading.Event()
+        self.ready = threading.Event()
+        """Set once the bus and the Zenoh session are up (for tests and embedding)."""
+        self.reloads = 0
+        self.reload_failures = 0
+        self._calibration: Calibration | None = None
+        self._calibration_id = ""
+        self._pipeline: Pipeline | None = None
+        self._started = time.monotonic()
+        self._health_seq = 0
+        if config.calibration is not None:
+            self._calibration = load_calibration(config.calibration)
+            self._calibration_id = calibration_id(config.calibration)
+
+    # --- control (thread-safe) -----------------------------------------------------
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def request_reload(self) -> None:
+        self._reload.set()
+
+    def install_signal_handlers(self) -> None:
+        """SIGTERM/SIGINT stop, SIGHUP reloads (main thread only)."""
+
+        def on_stop(signum: int, frame: FrameType | None) -> None:
+            log.info("signal %s: stopping", signal.Signals(signum).name)
+            self._stop.set()
+
+        def on_hup(signum: int, frame: FrameType | None) -> None:
+            self._reload.set()
+
+        signal.signal(signal.SIGTERM, on_stop)
+        signal.signal(signal.SIGINT, on_stop)
+        signal.signal(signal.SIGHUP, on_hup)
+
+    # --- the loop --------------------------------------------------------------------
+
+    def _open_bus(self, decoder: FrameDecoder) -> FrameSource:
+        c = self.config.can
+        return open_bus(interface=c.interface, channel=c.channel, bitrate=c.bitrate,
+                        host=c.host, port=c.port)
+
+    def run(self, *, source: FrameSource | None = None) -> RunSummary:
+        """Run until :meth:`stop` or a signal; ``source`` overrides the configured bus."""
+        cfg = self.config
+        decoder = FrameDecoder(cfg.can.dbc, cfg.can.signals,
+                               on_counter_jump=cfg.can.on_counter_jump)  # type: ignore[arg-type]
+        z = cfg.zenoh
+        zconf = (session_config(config_file=z.config_file) if z.config_file else
+                 session_config(mode=z.mode, listen=z.listen, connect=z.connect))  # type: ignore[arg-type]
+        bus = source or self._open_bus(decoder)
+        try:
+            session = zenoh.open(zconf)
+        except zenoh.ZError as exc:
+            bus.shutdown()
+            raise GyrothermError(f"cannot open zenoh session: {exc}") from exc
+        sink = _ZenohSink(session, cfg)
+        pipeline = Pipeline(decoder, sink, calibration=self._calibration,
+                            estimator=cfg.estimator)
+        self._pipeline = pipeline
+        k = keys(cfg.vehicle, cfg.sensor)
+        queryable = session.declare_queryable(k.calibration, self._on_query)
+        self._started = time.monotonic()
+        log.info("up: %s %s → %s", cfg.can.interface, cfg.can.channel, k.rate)
+        self._notifier.ready(status=self._status_line())
+        self.ready.set()
+        try:
+            self._loop(bus, pipeline, sink)
+        finally:
+            self._notifier.stopping(status="stopping")
+            queryable.undeclare()
+            sink.undeclare()
+            session.close()
+            bus.shutdown()
+        c = pipeline.counters()
+        log.info("stopped: %d frames in, %d published, drops %s", c.frames_received,
+                 c.frames_published, c.drops)
+        return RunSummary(c.frames_received, c.frames_published, c.drops, self.reloads,
+                          self.reload_failures, time.monotonic() - self._started)
+
+    def _loop(self, bus: FrameSource, pipeline: Pipeline, sink: _ZenohSink) -> None:
+        recv = bus.recv
+        process = pipeline.process
+        now_wall = time.time
+        mono = time.monotonic
+        timeout = self.config.can.recv_timeout_s
+        period = self.config.health_period_s
+        next_tick = mono()
+        stop = self._stop
+        while not stop.is_set():
+            msg = recv(timeout)
+            if msg is not None:
+                process(msg, now_wall())
+                # drain what is already queued before housekeeping
+                for _ in range(256):
+                    msg = recv(0.0)
+                    if msg is None:
+                        break
+                    process(msg, now_wall())
+            if mono() >= next_tick:
+                next_tick = mono() + min(period, 0.25)
+                self._housekeeping(pipeline, sink)
+
+    def _housekeeping(self, pipeline: Pipeline, sink: _ZenohSink) -> None:
+        self._notifier.watchdog()
+        if self._reload.is_set():
+            self._reload.clear()
+            self._do_reload(pipeline)
+        now = time.monotonic()
+        if now - getattr(self, "_last_health", -1e9) >= self.config.health_period_s:
+            self._last_health = now
+            pipeline.tick()
+            health = self._health()
+            if health is not None:
+                try:
+                    sink.health.put(encode_health(health))
+                    self._health_seq += 1
+                except zenoh.ZError as exc:
+                    log.warning("health publish failed: %s", exc)
+            self._notifier.status(self._status_line())
+
+    def _do_reload(self, pipeline: Pipeline) -> None:
+        path = self.config.calibration
+        self._notifier.reloading(status="reloading calibration")
+        if path is None:
+            log.warning("SIGHUP: no calibration file configured; nothing to reload")
+        else:
+            try:
+                cal = load_calibration(path)
+                cid = calibration_id(path)
+            except (CalibrationError, OSError) as exc:
+                self.reload_failures += 1
+                log.error("calibration reload failed, keeping %s: %s",
+                          self._calibration_id or "none", exc)
+            else:
+                pipeline.set_calibration(cal)
+                self._calibration, self._calibration_id = cal, cid
+                self.reloads += 1
+                log.info("calibration reloaded: %s (%s)", path, cid)
+        self._notifier.ready(status=self._status_line())
+
+    def _health(self) -> Any:
+        p = self._pipeline
+        if p is None:
+            return None
+        return p.health(seq=self._health_seq, receive_time_s=time.time(),
+                        uptime_s=time.monotonic() - self._started,
+                        calibration_id=self._calibration_id)
+
+    def _on_query(self, query: zenoh.Query) -> None:
+        cal = self._calibration
+        info = CalibrationInfo(self._calibration_id, cal.to_dict() if cal else None,
+                               self._health())
+        query.reply(query.key_expr, encode_calibration_info(info))
+
+    def _status_line(self) -> str:
+        p = self._pipeline
+        if p is None:
+            return "starting"
+        c = p.counters()
+        dropped = sum(c.drops.values())
+        return (f"{c.frames_received} frames, {c.frames_published} published, "
+                f"{dropped} dropped; calibration {self._calibration_id or 'none'}; "
+                f"flags {p.flags!r}")

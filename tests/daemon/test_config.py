@@ -1,0 +1,89 @@
+"""Daemon config files: valid examples load, bad ones name the key."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from gyrotherm import ConfigError
+from gyrotherm.daemon import load_config, parse_config
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def test_full_example(tmp_path: Path) -> None:
+    cfg_file = tmp_path / "g.toml"
+    cfg_file.write_text("""
+vehicle = "veh01"
+sensor = "imu0"
+calibration = "cal.json"
+health_period_s = 0.5
+[can]
+interface = "socketcand"
+host = "127.0.0.1"
+port = 29536
+channel = "vcan0"
+on_counter_jump = "reject"
+[can.signals]
+rate_message = "GyroRate"
+rate_x_signal = "RateX"
+rate_y_signal = "RateY"
+rate_z_signal = "RateZ"
+temperature_message = "GyroTemperature"
+temperature_signal = "Temperature"
+[estimator]
+stale_after_s = 2.0
+[zenoh]
+listen = ["tcp/127.0.0.1:7500"]
+congestion_control = "drop"
+""")
+    cfg = load_config(cfg_file)
+    assert cfg.calibration == tmp_path / "cal.json"
+    assert cfg.can.port == 29536 and cfg.can.on_counter_jump == "reject"
+    assert cfg.can.signals.rate_crc_signal is None
+    assert cfg.estimator.stale_after_s == 2.0
+    assert cfg.zenoh.listen == ("tcp/127.0.0.1:7500",)
+
+
+@pytest.mark.parametrize("name", ["gyrotherm.toml", "gyrotherm-bench-socketcand.toml",
+                                  "gyrotherm-bench-vcan0.toml"])
+def test_shipped_configs_load(name: str) -> None:
+    cfg = load_config(REPO / "deploy" / "config" / name)
+    assert cfg.vehicle and cfg.sensor
+
+
+@pytest.mark.parametrize(
+    ("toml", "message"),
+    [
+        ('sensor = "a"', "keys 'vehicle' and 'sensor' are required"),
+        ('vehicle = "v/1"\nsensor = "a"', "vehicle name 'v/1' is invalid"),
+        ('vehicle = "v"\nsensor = "a"\ncolour = 1', r"unknown key\(s\) \['colour'\]"),
+        ('vehicle = "v"\nsensor = "a"\n[can]\ninterface = "usb"', "interface 'usb' is not one"),
+        ('vehicle = "v"\nsensor = "a"\n[can]\nbitrate = 5', "bitrate = 5 is outside"),
+        ('vehicle = "v"\nsensor = "a"\n[can]\nbitrate = "fast"', "key 'bitrate' must be int"),
+        ('vehicle = "v"\nsensor = "a"\n[can]\ninterface = "socketcand"',
+         "'socketcand' needs 'host' and 'port'"),
+        ('vehicle = "v"\nsensor = "a"\n[can.signals]\nrate_message = "X"', "signals"),
+        ('vehicle = "v"\nsensor = "a"\nhealth_period_s = 0', "health_period_s = 0 is outside"),
+        ('vehicle = "v"\nsensor = "a"\n[zenoh]\nconfig = "z.json5"\nmode = "peer"',
+         "'config' excludes"),
+        ('vehicle = "v"\nsensor = "a"\n[estimator]\ntau_s = -1', r"estimator.tau_s = -1"),
+    ],
+)
+def test_bad_configs_name_the_key(tmp_path: Path, toml: str, message: str) -> None:
+    p = tmp_path / "bad.toml"
+    p.write_text(toml)
+    with pytest.raises(ConfigError, match=message):
+        load_config(p)
+
+
+def test_not_toml_and_missing(tmp_path: Path) -> None:
+    p = tmp_path / "bad.toml"
+    p.write_text("vehicle = ")
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        load_config(p)
+    with pytest.raises(ConfigError, match="cannot read config file"):
+        load_config(tmp_path / "absent.toml")
+    with pytest.raises(ConfigError, match="must be a table"):
+        parse_config({"vehicle": "v", "sensor": "s", "can": 3})

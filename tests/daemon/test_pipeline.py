@@ -1,0 +1,157 @@
+"""The pipeline: offline equivalence, accounting, bad frames, flags, reload."""
+
+from __future__ import annotations
+
+import math
+
+import can
+import numpy as np
+import pytest
+from streamkit import RecordingSink, run_frames
+
+from gyrotherm import PublishError
+from gyrotherm.codecs import FrameDecoder, FrameEncoder, Run
+from gyrotherm.codecs._wire import StatusFlags, decode_rate, decode_state
+from gyrotherm.compensation import Calibration, features
+from gyrotherm.daemon import Pipeline
+
+
+def test_corrected_rates_equal_offline_compensation(
+    short_runs: list[Run], stream_calibration: Calibration
+) -> None:
+    run = short_runs[0]
+    sink = RecordingSink()
+    pipe = Pipeline(FrameDecoder(), sink, calibration=stream_calibration)
+    for msg in run_frames(run, FrameEncoder()):
+        pipe.process(msg, 1.0e9)
+    got = np.array([decode_rate(p).rate_dps for p in sink.rates])
+    offline = features(run, stream_calibration.estimator)
+    for j, axis in enumerate("xyz"):
+        bias, _ = stream_calibration.bias_series(axis, offline.temperature_c, offline.delta_t_c)
+        np.testing.assert_allclose(got[:, j], run.rates_dps[axis] - bias, atol=1e-9)
+    c = pipe.counters()
+    assert c.frames_received == 2 * len(run) == c.frames_published
+    assert c.drops == {}
+    states = [decode_state(p) for p in sink.states]
+    assert [s.seq for s in states] == list(range(len(run)))
+    np.testing.assert_allclose([s.temperature_c for s in states], offline.temperature_c,
+                               atol=1e-9)
+
+
+def test_every_frame_is_published_or_dropped_by_reason(
+    short_runs: list[Run], stream_calibration: Calibration
+) -> None:
+    rng = np.random.default_rng(11)
+    frames = list(run_frames(short_runs[1].slice(0, 400), FrameEncoder()))
+    bad = {"crc_mismatch": 0, "wrong_length": 0, "unknown_id": 0}
+    mutated: list[can.Message] = []
+    for msg in frames:
+        roll = rng.random()
+        if roll < 0.05:
+            data = bytearray(msg.data)
+            data[int(rng.integers(0, 7))] ^= 0x10
+            msg = can.Message(arbitration_id=msg.arbitration_id, data=data,
+                              is_extended_id=False, timestamp=msg.timestamp)
+            bad["crc_mismatch"] += 1
+        elif roll < 0.08:
+            msg = can.Message(arbitration_id=msg.arbitration_id, data=msg.data[:5],
+                              is_extended_id=False, timestamp=msg.timestamp)
+            bad["wrong_length"] += 1
+        elif roll < 0.10:
+            mutated.append(can.Message(arbitration_id=0x7FF, data=b"\x00" * 8,
+                                       is_extended_id=False, timestamp=msg.timestamp))
+            bad["unknown_id"] += 1
+        mutated.append(msg)
+    sink = RecordingSink()
+    pipe = Pipeline(FrameDecoder(), sink, calibration=stream_calibration)
+    for msg in mutated:
+        pipe.process(msg, 0.0)
+    c = pipe.counters()
+    assert c.frames_received == len(mutated)
+    assert c.frames_received == c.frames_published + sum(c.drops.values())
+    for reason, n in bad.items():
+        assert c.drops.get(reason, 0) == n, reason
+    assert c.rate_published == len(sink.rates) and c.state_published == len(sink.states)
+    # frames after a lost one carry the COUNTER_JUMP flag, and their seq stays gap-free
+    rates = [decode_rate(p) for p in sink.rates]
+    assert [r.seq for r in rates] == list(range(len(rates)))
+    assert any(r.flags & StatusFlags.COUNTER_JUMP for r in rates)
+
+
+class FailingSink(RecordingSink):
+    def put_rate(self, payload: bytes) -> None:
+        raise PublishError("rate: session closed")
+
+
+def test_publish_errors_are_counted_not_raised(short_runs: list[Run]) -> None:
+    pipe = Pipeline(FrameDecoder(), FailingSink(), calibration=None)
+    for msg in run_frames(short_runs[0].slice(0, 10), FrameEncoder()):
+        pipe.process(msg, 0.0)
+    c = pipe.counters()
+    assert c.drops == {"publish_error": 10}
+    assert c.frames_published == 10  # the state messages
+
+
+def test_flags_before_temperature_without_calibration_and_when_stale(
+    short_runs: list[Run], stream_calibration: Calibration
+) -> None:
+    enc = FrameEncoder()
+    frames = [m for m in run_frames(short_runs[0].slice(0, 60), enc)]
+    rate_only = [m for m in frames if m.arbitration_id == 0x120]
+    sink = RecordingSink()
+    pipe = Pipeline(FrameDecoder(), sink, calibration=None)
+    pipe.process(rate_only[0], 0.0)
+    first = decode_rate(sink.rates[0])
+    assert first.flags & StatusFlags.TEMPERATURE_STALE and first.flags & StatusFlags.NO_CALIBRATION
+    assert first.bias_dps == (0.0, 0.0, 0.0) and first.rate_dps == first.raw_rate_dps
+    # with calibration: after 60 s of temperature, then rate frames only for > stale_after_s
+    sink = RecordingSink()
+    pipe = Pipeline(FrameDecoder(), sink, calibration=stream_calibration)
+    for m in frames:
+        pipe.process(m, 0.0)
+    fresh = decode_rate(sink.rates[-1])
+    assert not fresh.flags & (StatusFlags.TEMPERATURE_STALE | StatusFlags.NO_CALIBRATION)
+    later = short_runs[0].slice(60, 80)
+    for i, t in enumerate(later.time_s.tolist()):
+        from gyrotherm.codecs import RateSample
+
+        pipe.process(enc.encode_rate(RateSample(t, *(float(later.rates_dps[a][i])
+                                                     for a in "xyz"))), 0.0)
+    pipe.tick()  # predict-only
+    stale = decode_rate(sink.rates[-1])
+    assert stale.flags & StatusFlags.TEMPERATURE_STALE
+    assert pipe.last_estimate is not None and pipe.last_estimate.stale
+    assert math.isfinite(stale.bias_dps[0])
+
+
+def test_clamped_flag_outside_calibrated_range(stream_calibration: Calibration) -> None:
+    from gyrotherm.codecs import RateSample, TemperatureSample
+
+    enc = FrameEncoder()
+    sink = RecordingSink()
+    pipe = Pipeline(FrameDecoder(), sink, calibration=stream_calibration)
+    hot = stream_calibration.valid_range.t_max_c + 20
+    for k in range(30):
+        pipe.process(enc.encode_temperature(TemperatureSample(k * 1.0, hot)), 0.0)
+        pipe.process(enc.encode_rate(RateSample(k * 1.0, 0.1, 0.2, 0.3)), 0.0)
+    last = decode_rate(sink.rates[-1])
+    assert last.flags & StatusFlags.T_CLAMPED
+    edge = stream_calibration.bias_at(stream_calibration.valid_range.t_max_c, 0.0)
+    assert last.bias_dps[0] == pytest.approx(edge.bias_dps["x"], abs=0.01)
+
+
+def test_set_calibration_swaps_atomically(
+    short_runs: list[Run], stream_calibration: Calibration
+) -> None:
+    sink = RecordingSink()
+    pipe = Pipeline(FrameDecoder(), sink, calibration=None)
+    frames = list(run_frames(short_runs[0].slice(0, 40), FrameEncoder()))
+    for m in frames[:40]:
+        pipe.process(m, 0.0)
+    assert decode_rate(sink.rates[-1]).flags & StatusFlags.NO_CALIBRATION
+    pipe.set_calibration(stream_calibration)
+    for m in frames[40:]:
+        pipe.process(m, 0.0)
+    after = decode_rate(sink.rates[-1])
+    assert not after.flags & StatusFlags.NO_CALIBRATION
+    assert after.bias_dps != (0.0, 0.0, 0.0)
