@@ -8,12 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from streamkit import free_port, run_frames
 
 from gyrotherm.codecs import FrameEncoder, Run
 from gyrotherm.compensation import Calibration, features
 from gyrotherm.daemon import Daemon, RunSummary, parse_config
 from gyrotherm.sim import open_bus
+from streamkit import free_port, run_frames
 
 TIMEOUT_S = 20.0
 
@@ -47,7 +47,7 @@ def test_end_to_end_in_one_process(daemon_env, short_runs: list[Run],  # type: i
                                    stream_calibration: Calibration) -> None:
     from gyrotherm.client import Subscriber
 
-    daemon, channel, port, cal_path, result = daemon_env
+    daemon, channel, port, _cal_path, result = daemon_env
     run = short_runs[2].slice(0, 600)
     frames = list(run_frames(run, FrameEncoder()))
     with Subscriber("testcar", "imu0", connect=[f"tcp/127.0.0.1:{port}"]) as sub, \

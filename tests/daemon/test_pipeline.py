@@ -7,13 +7,13 @@ import math
 import can
 import numpy as np
 import pytest
-from streamkit import RecordingSink, run_frames
 
 from gyrotherm import PublishError
 from gyrotherm.codecs import FrameDecoder, FrameEncoder, Run
 from gyrotherm.codecs._wire import StatusFlags, decode_rate, decode_state
 from gyrotherm.compensation import Calibration, features
 from gyrotherm.daemon import Pipeline
+from streamkit import RecordingSink, run_frames
 
 
 def test_corrected_rates_equal_offline_compensation(
