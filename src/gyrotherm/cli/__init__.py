@@ -8,7 +8,7 @@ from collections.abc import Sequence
 
 from gyrotherm import __version__
 from gyrotherm._errors import GyrothermError
-from gyrotherm.cli import _offline, _run
+from gyrotherm.cli import _demo, _offline, _run
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -21,18 +21,19 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     _offline.register(sub)
     _run.register(sub)
-    demo = sub.add_parser("demo", help="the main job on embedded defaults")
-    demo.add_argument("--seed", type=int, default=1)
-    demo.add_argument("--rate-hz", type=float, default=10.0)
-    demo.add_argument("--axis", choices=("x", "y", "z"), default="x")
-    demo.add_argument("--out", default=None)
-    demo.set_defaults(func=_offline.cmd_paper)
+    _demo.register(sub)
+    sub.add_parser("listen", help="live view of a sensor's Zenoh stream (see: listen --help)")
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    args_list = list(sys.argv[1:] if argv is None else argv)
+    if args_list[:1] == ["listen"]:  # the live view has its own parser
+        from gyrotherm.client import listen_main
+
+        return listen_main(args_list[1:])
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(args_list)
     try:
         code: int = args.func(args)
     except GyrothermError as exc:

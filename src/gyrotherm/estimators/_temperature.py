@@ -51,9 +51,9 @@ class EstimatorConfig:
     process_noise_c2_per_s3: float = 1e-7
     """Spectral density q of the white jerk driving dT/dt, °C²/s³."""
     update_period_s: float = 0.0
-    """Offline only: minimum spacing of readings fed to the filter from a run
-    file, s (0 = every row). Set it to the sensor's update period when rows
-    repeat a held reading."""
+    """Offline only: the sensor's refresh period, s: from a run file, one row per
+    slot floor(time_s / period) is fed to the filter (0 = every row). Set it
+    when rows repeat a held reading."""
     gate_sigma: float = 6.0
     """Innovation gate, in standard deviations of the innovation."""
     max_consecutive_rejections: int = 5
@@ -265,24 +265,28 @@ def estimate_series(
 ) -> EstimateSeries:
     """Run the estimator over a recorded series, as the daemon would online.
 
-    A row is fed to the filter when at least ``config.update_period_s`` has
-    passed since the last fed row; every row receives the latest estimate.
+    With ``P = config.update_period_s`` > 0, row i is fed to the filter when it is
+    the first row of a new slot ``floor(time_s / P)`` (the simulator's sensor
+    refresh and ``gyrotherm sim stream``'s temperature frames use the same
+    slots); ``P = 0`` feeds every row. Every row receives the latest estimate.
     """
     n = len(time_s)
     est = TemperatureEstimator(config)
     t_out = np.empty(n)
     r_out = np.empty(n)
-    period = config.update_period_s - 1e-9
-    last_fed = -math.inf
+    period = config.update_period_s
+    if period > 0:  # row i is fed when it opens a new slot floor(t/P)
+        slot = np.floor(np.asarray(time_s) / period + 1e-9)
+        fed = np.r_[True, slot[1:] != slot[:-1]].tolist()
+    else:
+        fed = [True] * n
     temp, rate = math.nan, math.nan
     times = time_s.tolist()
     readings = temperature_c.tolist()
     for i in range(n):
-        t = times[i]
-        if t - last_fed >= period:
-            est._fuse(t, readings[i])
+        if fed[i]:
+            est._fuse(times[i], readings[i])
             temp, rate = est._state()
-            last_fed = t
         t_out[i] = temp
         r_out[i] = rate
     return EstimateSeries(temperature_c=t_out, delta_t_c=config.tau_s * r_out, rate_c_per_s=r_out)

@@ -1,0 +1,188 @@
+"""``gyrotherm listen``: live view of a daemon's streams, then a summary.
+
+One line per update, at most ``--max-hz`` (default 10) lines a second::
+
+    #1234 raw[+0.0110 +0.0220 +0.1000] corr[+0.0010 +0.0020 +0.0700] dps  T 25.31 C  dT +0.300 C
+      flags=T_CLAMPED  gaps=1/3  lat p50=0.37 p99=4.71 ms          (one line on screen)
+
+(``raw``/``corr``: raw and corrected rate per axis x y z, °/s; ``T``/``dT`` from the
+latest state message; ``gaps`` = gap count / missing messages on the rate stream;
+latency as :class:`gyrotherm.client.Subscriber` measures it.) It exits after
+``--count`` rate messages or ``--timeout-s`` seconds, printing per-stream totals.
+
+Exit status: 0 when ``--count`` was reached, or without ``--count`` when at least
+one message arrived (or on Ctrl-C); 1 otherwise; 2 on a usage or configuration error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+
+from gyrotherm._errors import ConfigError
+from gyrotherm._zenoh import DEFAULT_CONNECT, open_session
+from gyrotherm.client._subscriber import LatencyStats, StreamStats, Subscriber
+from gyrotherm.codecs._wire import HealthMessage, RateMessage, StateMessage, StatusFlags
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="gyrotherm listen", description="Live view of a gyrotherm daemon's Zenoh streams."
+    )
+    p.add_argument("--vehicle", required=True, help="vehicle name (key gyrotherm/<vehicle>/...)")
+    p.add_argument("--sensor", required=True, help="sensor name")
+    p.add_argument(
+        "--connect", action="append", default=None, metavar="ENDPOINT",
+        help=f"zenoh endpoint to connect to, repeatable (default {DEFAULT_CONNECT[0]})",
+    )  # fmt: skip
+    p.add_argument("--zenoh-config", default=None, metavar="JSON5",
+                   help="zenoh config file used unchanged (replaces --connect)")  # fmt: skip
+    p.add_argument("--count", type=int, default=None, help="stop after N rate messages")
+    p.add_argument("--timeout-s", type=float, default=None, help="stop after S seconds")
+    p.add_argument("--max-hz", type=float, default=10.0, help="live lines per second (10)")
+    return p
+
+
+def _flags_text(flags: StatusFlags) -> str:
+    if not flags:
+        return "-"
+    names = [f.name for f in StatusFlags if f and f in flags and f.name]
+    unknown = int(flags) & ~sum(int(f) for f in StatusFlags)
+    if unknown:
+        names.append(hex(unknown))
+    return "|".join(names)
+
+
+def _ms(x: float) -> str:
+    return "-" if math.isnan(x) else f"{x * 1e3:.2f}"
+
+
+def _vec(v: tuple[float, float, float]) -> str:
+    return " ".join(f"{x:+.4f}" for x in v)
+
+
+def format_line(
+    rate: RateMessage | None, state: StateMessage | None, rate_stats: StreamStats
+) -> str:
+    """One live-view line from the latest rate and state messages."""
+    parts = []
+    if rate is not None:
+        parts.append(f"#{rate.seq} raw[{_vec(rate.raw_rate_dps)}] corr[{_vec(rate.rate_dps)}] dps")
+    else:
+        parts.append("# no rate yet")
+    if state is not None:
+        parts.append(f"T {state.temperature_c:.2f} C  dT {state.delta_t_c:+.3f} C")
+    flags = rate.flags if rate is not None else (state.flags if state else StatusFlags.NONE)
+    lat = rate_stats.latency
+    parts.append(f"flags={_flags_text(flags)}")
+    parts.append(f"gaps={rate_stats.gaps}/{rate_stats.missing}")
+    parts.append(f"lat p50={_ms(lat.p50_s)} p99={_ms(lat.p99_s)} ms")
+    return "  ".join(parts)
+
+
+def _summary_line(name: str, s: StreamStats) -> str:
+    lat: LatencyStats = s.latency
+    return (
+        f"{name}: received={s.received} gaps={s.gaps} missing={s.missing} resets={s.resets} "
+        f"duplicates={s.duplicates} undecodable={s.undecodable} dropped={s.dropped} "
+        f"latency_ms mean={_ms(lat.mean_s)} p50={_ms(lat.p50_s)} p99={_ms(lat.p99_s)} "
+        f"max={_ms(lat.max_s)}"
+    )
+
+
+class _Latest:
+    """Latest state and health messages, updated from the subscriber's callbacks."""
+
+    def __init__(self) -> None:
+        self.state: StateMessage | None = None
+        self.health: HealthMessage | None = None
+
+    def on_state(self, msg: StateMessage) -> None:
+        self.state = msg
+
+    def on_health(self, msg: HealthMessage) -> None:
+        self.health = msg
+
+
+def _run(
+    sub: Subscriber, latest: _Latest, count: int | None, timeout_s: float | None, max_hz: float
+) -> int:
+    """Print live lines until ``count`` rate messages or ``timeout_s``; return the count."""
+    min_period_s = 1.0 / max_hz if max_hz > 0 else 0.0
+    deadline = None if timeout_s is None else time.monotonic() + timeout_s
+    received = 0
+    last_rate: RateMessage | None = None
+    last_print = -math.inf
+    while count is None or received < count:
+        wait_s = 0.1 if deadline is None else min(0.1, deadline - time.monotonic())
+        if wait_s <= 0:
+            break
+        for msg in sub.rates(timeout_s=wait_s):
+            received += 1
+            last_rate = msg
+            now = time.monotonic()
+            if (count is not None and received >= count) or (
+                deadline is not None and now >= deadline
+            ):
+                break
+            if now - last_print >= min_period_s:
+                last_print = now
+                print(format_line(msg, latest.state, sub.stats().rate), flush=True)
+    if last_rate is not None or latest.state is not None:
+        print(format_line(last_rate, latest.state, sub.stats().rate), flush=True)
+    return received
+
+
+def listen_main(argv: list[str] | None = None) -> int:
+    """Entry point of ``gyrotherm listen`` (argv without the program/sub-command name)."""
+    args = _parser().parse_args(argv)
+    if args.count is not None and args.count < 1:
+        print(f"gyrotherm listen: --count = {args.count} is invalid: must be >= 1", file=sys.stderr)
+        return 2
+    if args.zenoh_config is not None and args.connect:
+        print("gyrotherm listen: --connect and --zenoh-config exclude each other", file=sys.stderr)
+        return 2
+    session = None
+    try:
+        if args.zenoh_config is not None:
+            session = open_session(config_file=args.zenoh_config)
+        connect = tuple(args.connect) if args.connect else DEFAULT_CONNECT
+        latest = _Latest()
+        sub = Subscriber(
+            args.vehicle, args.sensor, connect=connect, session=session,
+            on_state=latest.on_state, on_health=latest.on_health,
+        )  # fmt: skip
+    except ConfigError as exc:
+        print(f"gyrotherm listen: {exc}", file=sys.stderr)
+        if session is not None:
+            session.close()
+        return 2
+    received = 0
+    interrupted = False
+    try:
+        with sub:
+            try:
+                received = _run(sub, latest, args.count, args.timeout_s, args.max_hz)
+            except KeyboardInterrupt:
+                interrupted = True
+            stats = sub.stats()
+    finally:
+        if session is not None:
+            session.close()
+    print(f"summary: {sub.keys.rate.rsplit('/', 1)[0]}")
+    for name in ("rate", "state", "health"):
+        print("  " + _summary_line(name, getattr(stats, name)))
+    h = latest.health
+    if h is not None:
+        drops = ", ".join(f"{k}={v}" for k, v in sorted(h.drops.items())) or "none"
+        print(
+            f"  daemon: uptime_s={h.uptime_s:.1f} frames_received={h.frames_received} "
+            f"frames_published={h.frames_published} drops: {drops} "
+            f"calibration={h.calibration_id or '-'} flags={_flags_text(h.flags)}"
+        )
+    if args.count is not None:
+        return 0 if received >= args.count else 1
+    anything = sum(getattr(stats, n).received for n in ("rate", "state", "health"))
+    return 0 if interrupted or anything > 0 else 1

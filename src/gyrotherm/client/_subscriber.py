@@ -1,0 +1,404 @@
+"""Typed subscriber to a gyrotherm daemon's rate, state and health streams.
+
+Each zenoh sample is decoded (:mod:`gyrotherm.codecs._wire`) in zenoh's callback
+thread, then handed to the user's callback (``on_rate`` ...) or, without one,
+queued for iteration (``for msg in sub.rates(timeout_s=1.0)``). Per stream the
+subscriber keeps:
+
+* **sequence accounting** from ``seq`` (uint64, per key expression, 0 first):
+  ``seq == last + 1`` is in order; ``seq > last + 1`` is one *gap* of
+  ``seq − last − 1`` *missing* messages; ``seq == last`` a *duplicate*;
+  ``seq < last`` a *reset* (the publisher restarted and counts from 0 again; if the
+  first seen seq of the new run is ``s > 0`` its ``s`` predecessors count as one
+  more gap). The first message seen is never a gap (a late join is not a loss).
+* **latency** = subscriber wall clock at arrival (``time.time()``) − the message's
+  ``receive_time_s`` (the daemon's wall clock when the CAN frame arrived), so it
+  covers daemon processing + zenoh transport (both clocks are the host's wall
+  clock: across hosts they must be synchronised). Count, mean, min and max are
+  exact; p50/p99 are nearest-rank percentiles of a uniform random sample of at
+  most ``reservoir_size`` latencies (reservoir, Vitter's algorithm R, seeded),
+  exact while ``count <= reservoir_size``.
+* counts of undecodable payloads (never raised into zenoh) and of messages the
+  bounded iteration queue dropped (oldest first: a servo loop wants fresh data).
+
+One zenoh subscriber on ``gyrotherm/<vehicle>/<sensor>/*`` feeds all three streams
+from one callback thread, so callbacks (and accounting) of different streams run in
+zenoh's delivery order, which for one publishing session at one priority is the
+publish order (a state published before a rate is seen first). Callbacks must be
+quick: they delay every later sample. Do not call :meth:`Subscriber.close` from
+inside one of its callbacks.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import math
+import random
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any, Generic, TypeVar
+
+import zenoh
+
+from gyrotherm._errors import CalibrationError, ConfigError, DecodeError
+from gyrotherm._zenoh import DEFAULT_CONNECT, KeyExprs, keys, open_session
+from gyrotherm.codecs._wire import (
+    CalibrationInfo,
+    HealthMessage,
+    Payload,
+    RateMessage,
+    StateMessage,
+    decode_calibration_info,
+    decode_health,
+    decode_rate,
+    decode_state,
+)
+
+_log = logging.getLogger(__name__)
+_M = TypeVar("_M", RateMessage, StateMessage, HealthMessage)
+
+
+@dataclass(frozen=True)
+class LatencyStats:
+    """Latency summary in seconds; NaN fields while ``count == 0``."""
+
+    count: int
+    mean_s: float
+    min_s: float
+    max_s: float
+    p50_s: float
+    p99_s: float
+
+
+def percentile(sorted_values: Sequence[float], pct: float) -> float:
+    """Nearest-rank percentile: ``sorted_values[ceil(pct/100·n) − 1]``; NaN when empty."""
+    n = len(sorted_values)
+    if n == 0:
+        return math.nan
+    rank = max(1, math.ceil(pct / 100.0 * n))
+    return sorted_values[min(rank, n) - 1]
+
+
+class LatencyTracker:
+    """Running latency statistics with a bounded reservoir for the percentiles."""
+
+    def __init__(self, *, reservoir_size: int = 4096, seed: int = 0) -> None:
+        if reservoir_size < 1:
+            raise ConfigError(f"reservoir_size = {reservoir_size} is invalid: must be >= 1")
+        self._size = reservoir_size
+        self._rng = random.Random(seed)
+        self._reservoir: list[float] = []
+        self._count = 0
+        self._sum = 0.0
+        self._min = math.inf
+        self._max = -math.inf
+
+    def add(self, latency_s: float) -> None:
+        """Record one latency (s)."""
+        self._count += 1
+        self._sum += latency_s
+        self._min = min(self._min, latency_s)
+        self._max = max(self._max, latency_s)
+        if len(self._reservoir) < self._size:
+            self._reservoir.append(latency_s)
+        else:
+            j = self._rng.randrange(self._count)
+            if j < self._size:
+                self._reservoir[j] = latency_s
+
+    def snapshot(self) -> LatencyStats:
+        """Current statistics."""
+        if self._count == 0:
+            return LatencyStats(0, math.nan, math.nan, math.nan, math.nan, math.nan)
+        ordered = sorted(self._reservoir)
+        return LatencyStats(
+            self._count,
+            self._sum / self._count,
+            self._min,
+            self._max,
+            percentile(ordered, 50.0),
+            percentile(ordered, 99.0),
+        )
+
+
+class SequenceTracker:
+    """Gap / reset accounting of one stream's ``seq`` (rules in the module docstring)."""
+
+    def __init__(self) -> None:
+        self.last_seq: int | None = None
+        self.gaps = 0
+        self.missing = 0
+        self.resets = 0
+        self.duplicates = 0
+
+    def observe(self, seq: int) -> None:
+        """Account for the next received ``seq``."""
+        last = self.last_seq
+        if last is not None:
+            if seq > last + 1:
+                self.gaps += 1
+                self.missing += seq - last - 1
+            elif seq == last:
+                self.duplicates += 1
+                return
+            elif seq < last:
+                self.resets += 1
+                if seq > 0:
+                    self.gaps += 1
+                    self.missing += seq
+        self.last_seq = seq
+
+
+@dataclass(frozen=True)
+class StreamStats:
+    """Counters of one stream (rate, state or health) since the subscriber opened."""
+
+    received: int
+    gaps: int
+    missing: int
+    resets: int
+    duplicates: int
+    undecodable: int
+    dropped: int
+    callback_errors: int
+    last_seq: int | None
+    last_error: str | None
+    latency: LatencyStats
+
+
+@dataclass(frozen=True)
+class SubscriberStats:
+    """Per-stream statistics of a :class:`Subscriber`."""
+
+    rate: StreamStats
+    state: StreamStats
+    health: StreamStats
+
+
+class _Stream(Generic[_M]):
+    """One key expression: decode, account, then call back or queue."""
+
+    def __init__(
+        self,
+        name: str,
+        decode: Callable[[Payload], _M],
+        callback: Callable[[_M], Any] | None,
+        queue_size: int,
+        clock: Callable[[], float],
+        reservoir_size: int,
+        activity: threading.Condition,
+    ) -> None:
+        self.name = name
+        self._activity = activity
+        self._decode: Callable[[Payload], _M] = decode
+        self.callback: Callable[[_M], Any] | None = callback
+        self._clock = clock
+        self._cond = threading.Condition()
+        self._queue: collections.deque[_M] = collections.deque(maxlen=queue_size)
+        self._seq = SequenceTracker()
+        self._latency = LatencyTracker(reservoir_size=reservoir_size)
+        self._received = self._undecodable = self._dropped = self._callback_errors = 0
+        self._last_error: str | None = None
+        self.closed = False
+
+    def on_sample(self, sample: zenoh.Sample) -> None:
+        now_s = self._clock()
+        if self.closed or sample.kind != zenoh.SampleKind.PUT:
+            return
+        try:
+            msg = self._decode(sample.payload.to_bytes())
+        except DecodeError as exc:
+            with self._cond:
+                self._undecodable += 1
+                self._last_error = str(exc)
+            self._notify_activity()
+            return
+        with self._cond:
+            self._received += 1
+            self._seq.observe(msg.seq)
+            self._latency.add(now_s - msg.receive_time_s)
+            if self.callback is None:
+                if len(self._queue) == self._queue.maxlen:
+                    self._dropped += 1
+                self._queue.append(msg)
+                self._cond.notify()
+        if self.callback is not None:
+            try:
+                self.callback(msg)
+            except Exception as exc:  # a user bug must not kill zenoh's thread
+                with self._cond:
+                    self._callback_errors += 1
+                    self._last_error = f"{self.name} callback raised {exc!r}"
+                _log.exception("gyrotherm %s callback raised", self.name)
+        self._notify_activity()
+
+    def _notify_activity(self) -> None:
+        with self._activity:
+            self._activity.notify_all()
+
+    def iterate(self, timeout_s: float | None) -> Iterator[_M]:
+        if self.callback is not None:  # raised here, not at the first next()
+            raise ConfigError(f"{self.name} stream has an on_{self.name} callback: no iteration")
+        return self._iterate(timeout_s)
+
+    def _iterate(self, timeout_s: float | None) -> Iterator[_M]:
+        while True:
+            with self._cond:
+                ready = self._cond.wait_for(lambda: self._queue or self.closed, timeout_s)
+                if self.closed or not ready:
+                    return
+                msg = self._queue.popleft()
+            yield msg
+
+    def close(self) -> None:
+        with self._cond:
+            self.closed = True
+            self._cond.notify_all()
+
+    def stats(self) -> StreamStats:
+        with self._cond:
+            s = self._seq
+            return StreamStats(
+                self._received, s.gaps, s.missing, s.resets, s.duplicates, self._undecodable,
+                self._dropped, self._callback_errors, s.last_seq, self._last_error,
+                self._latency.snapshot(),
+            )  # fmt: skip
+
+
+class Subscriber:
+    """Subscribe to ``gyrotherm/<vehicle>/<sensor>/{rate,state,health}``.
+
+    Without ``session`` a peer session is opened that connects to ``connect``
+    (listens nowhere, no scouting) and is closed by :meth:`close`; a given
+    ``session`` is left open. ``queue_size`` bounds each iteration queue.
+    ``clock`` (s, wall clock) is injectable for tests.
+    """
+
+    def __init__(
+        self,
+        vehicle: str,
+        sensor: str,
+        *,
+        connect: Sequence[str] = DEFAULT_CONNECT,
+        session: zenoh.Session | None = None,
+        on_rate: Callable[[RateMessage], Any] | None = None,
+        on_state: Callable[[StateMessage], Any] | None = None,
+        on_health: Callable[[HealthMessage], Any] | None = None,
+        queue_size: int = 1024,
+        reservoir_size: int = 4096,
+        clock: Callable[[], float] = time.time,
+    ) -> None:
+        self.keys: KeyExprs = keys(vehicle, sensor)
+        if queue_size < 1:
+            raise ConfigError(f"queue_size = {queue_size} is invalid: must be >= 1")
+        self._closed = False
+        self._activity = threading.Condition()
+        common = (queue_size, clock, reservoir_size, self._activity)
+        self._rate = _Stream("rate", decode_rate, on_rate, *common)
+        self._state = _Stream("state", decode_state, on_state, *common)
+        self._health = _Stream("health", decode_health, on_health, *common)
+        self._owns_session = session is None
+        self._session = open_session(connect=connect) if session is None else session
+        self._by_key: dict[str, _Stream[Any]] = {
+            self.keys.rate: self._rate,
+            self.keys.state: self._state,
+            self.keys.health: self._health,
+        }
+        self._zsubs: list[zenoh.Subscriber[None]] = []
+        try:
+            # One subscriber for the three keys: one callback thread, so callbacks of
+            # different streams run in the order zenoh delivered the samples.
+            prefix = self.keys.rate.rsplit("/", 1)[0]
+            self._zsubs.append(self._session.declare_subscriber(f"{prefix}/*", self._on_sample))
+        except BaseException:
+            self.close()
+            raise
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        stream = self._by_key.get(str(sample.key_expr))
+        if stream is not None:
+            stream.on_sample(sample)
+
+    @property
+    def session(self) -> zenoh.Session:
+        """The zenoh session in use."""
+        return self._session
+
+    def rates(self, *, timeout_s: float | None = None) -> Iterator[RateMessage]:
+        """Yield rate messages as they arrive; stop when none arrives within
+        ``timeout_s`` seconds (None: wait forever) or when the subscriber closes."""
+        return self._rate.iterate(timeout_s)
+
+    def states(self, *, timeout_s: float | None = None) -> Iterator[StateMessage]:
+        """Yield state messages (see :meth:`rates`)."""
+        return self._state.iterate(timeout_s)
+
+    def healths(self, *, timeout_s: float | None = None) -> Iterator[HealthMessage]:
+        """Yield health messages (see :meth:`rates`)."""
+        return self._health.iterate(timeout_s)
+
+    def stats(self) -> SubscriberStats:
+        """Snapshot of every stream's counters and latency."""
+        return SubscriberStats(self._rate.stats(), self._state.stats(), self._health.stats())
+
+    def wait_for(
+        self, predicate: Callable[[SubscriberStats], bool], *, timeout_s: float
+    ) -> bool:
+        """Block until ``predicate(self.stats())`` holds (re-checked after every sample,
+        decoded or not, once its callback returned) or ``timeout_s`` passes; return it."""
+        deadline = time.monotonic() + timeout_s
+        with self._activity:
+            while not predicate(self.stats()):
+                remaining = deadline - time.monotonic()
+                if remaining <= 0 or self._closed:
+                    return False
+                self._activity.wait(remaining)
+        return True
+
+    def query_calibration(self, *, timeout_s: float = 2.0) -> CalibrationInfo:
+        """Ask the daemon's ``…/calibration`` queryable for its calibration and health.
+
+        Raises TimeoutError when nothing answers within ``timeout_s``,
+        CalibrationError when the daemon replies with an error, DecodeError on a
+        malformed reply.
+        """
+        replies = self._session.get(self.keys.calibration, timeout=timeout_s)
+        for reply in replies:
+            if reply.ok is not None:
+                return decode_calibration_info(reply.ok.payload.to_bytes())
+            err = reply.err
+            text = err.payload.to_bytes().decode("utf-8", "replace") if err else "?"
+            raise CalibrationError(f"{self.keys.calibration}: daemon replied with error: {text}")
+        raise TimeoutError(f"{self.keys.calibration}: no reply within {timeout_s} s")
+
+    def close(self) -> None:
+        """Stop receiving (idempotent); iterators end; an owned session is closed."""
+        if self._closed:
+            return
+        self._closed = True
+        for stream in (self._rate, self._state, self._health):
+            stream.close()
+        with self._activity:
+            self._activity.notify_all()
+        for zsub in self._zsubs:
+            try:
+                zsub.undeclare()
+            except zenoh.ZError:  # session already closed by its owner
+                pass
+        self._zsubs.clear()
+        if self._owns_session:
+            self._session.close()
+
+    @property
+    def closed(self) -> bool:
+        """True once :meth:`close` ran."""
+        return self._closed
+
+    def __enter__(self) -> Subscriber:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,203 @@
+"""Zenoh session config: safe defaults checked in the config and in the sockets we hold."""
+
+from __future__ import annotations
+
+import ipaddress
+import json
+import os
+import socket
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from gyrotherm import ConfigError
+from gyrotherm._zenoh import is_any_interface, keys, open_session, session_config
+
+
+# ------------------------------------------------------------------ /proc helpers
+def _own_socket_inodes() -> set[int]:
+    inodes = set()
+    for fd in os.listdir("/proc/self/fd"):
+        try:
+            target = os.readlink(f"/proc/self/fd/{fd}")
+        except OSError:
+            continue
+        if target.startswith("socket:["):
+            inodes.add(int(target[8:-1]))
+    return inodes
+
+
+def _addr(hex_addr: str) -> tuple[str, int]:
+    """Decode /proc/net/{tcp,udp}[6] ``ADDR:PORT`` (address in host byte order words)."""
+    host, port = hex_addr.split(":")
+    raw = bytes.fromhex(host)
+    # each 32-bit word is little-endian on x86/arm64
+    swapped = b"".join(raw[i : i + 4][::-1] for i in range(0, len(raw), 4))
+    return str(ipaddress.ip_address(swapped)), int(port, 16)
+
+
+def _own_sockets(proto: str, *, listening_only: bool) -> set[tuple[int, str, int]]:
+    """(inode, address, port) of this process's ``proto`` sockets (tcp or udp, v4 and v6)."""
+    own = _own_socket_inodes()
+    out = set()
+    for suffix in ("", "6"):
+        path = f"/proc/self/net/{proto}{suffix}"
+        if not os.path.exists(path):
+            continue
+        with open(path) as f:
+            for line in f.readlines()[1:]:
+                fields = line.split()
+                state, inode = fields[3], int(fields[9])
+                if inode in own and (not listening_only or state == "0A"):
+                    out.add((inode, *_addr(fields[1])))
+    return out
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_proc_address_decoder() -> None:
+    assert _addr("0100007F:1D27") == ("127.0.0.1", 7463)
+    assert _addr("00000000000000000000000000000000:0050") == ("::", 80)
+    assert _addr("00000000000000000000000001000000:0050") == ("::1", 80)
+
+
+# ------------------------------------------------------------------ key expressions
+def test_keys() -> None:
+    k = keys("rover-1", "imu_0.a")
+    assert (k.rate, k.state, k.health, k.calibration) == (
+        "gyrotherm/rover-1/imu_0.a/rate",
+        "gyrotherm/rover-1/imu_0.a/state",
+        "gyrotherm/rover-1/imu_0.a/health",
+        "gyrotherm/rover-1/imu_0.a/calibration",
+    )
+    for key in (k.rate, k.state, k.health, k.calibration):
+        assert str(zenoh.KeyExpr(key)) == key  # valid and canonical for zenoh
+
+
+@pytest.mark.parametrize(
+    "bad", ["", "a/b", "*", "**", "a*", "$x", "a$*", "a#b", "a?b", "a b", ".", "..", "-x",
+            "x" * 65, "é", "a\n"],
+)  # fmt: skip
+def test_bad_names_are_refused(bad: str) -> None:
+    with pytest.raises(ConfigError, match=r"vehicle name .* is invalid"):
+        keys(bad, "imu")
+    with pytest.raises(ConfigError, match=r"sensor name .* is invalid"):
+        keys("v", bad)
+
+
+# ------------------------------------------------------------------ config contents
+def test_zenoh_default_would_listen_on_all_interfaces() -> None:
+    """Why session_config exists: zenoh's own peer default is tcp/[::]:0."""
+    default = json.loads(zenoh.Config().get_json("listen/endpoints"))
+    assert default["peer"] == ["tcp/[::]:0"]
+
+
+def test_safe_defaults() -> None:
+    c = session_config()
+    assert json.loads(c.get_json("mode")) == "peer"
+    assert json.loads(c.get_json("scouting/multicast/enabled")) is False
+    assert json.loads(c.get_json("scouting/gossip/enabled")) is False
+    assert json.loads(c.get_json("listen/endpoints")) == []
+    assert json.loads(c.get_json("connect/endpoints")) == []
+
+
+def test_explicit_endpoints_and_mode() -> None:
+    c = session_config(mode="router", listen=["tcp/127.0.0.1:7447"],
+                       connect=["tcp/127.0.0.1:7448", "tcp/localhost:7449"])  # fmt: skip
+    assert json.loads(c.get_json("mode")) == "router"
+    assert json.loads(c.get_json("listen/endpoints")) == ["tcp/127.0.0.1:7447"]
+    assert json.loads(c.get_json("connect/endpoints")) == [
+        "tcp/127.0.0.1:7448", "tcp/localhost:7449"]  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("endpoint", "any_if"),
+    [
+        ("tcp/0.0.0.0:7447", True), ("tcp/[::]:0", True), ("udp/0.0.0.0:7447", True),
+        ("tcp/[::ffff:0.0.0.0]:1", True), ("tcp/0:7447", True),
+        ("tcp/[::]:7447?iface=lo", True), ("tcp/127.0.0.1:7447", False),
+        ("tcp/[::1]:7447", False), ("tcp/localhost:0", False), ("tcp/10.1.2.3:7447", False),
+        ("unixsock-stream//tmp/zenoh.sock", False),
+    ],
+)  # fmt: skip
+def test_any_interface_detection(endpoint: str, any_if: bool) -> None:
+    assert is_any_interface(endpoint) is any_if
+    if any_if:
+        with pytest.raises(ConfigError, match=r"listens on all interfaces"):
+            session_config(listen=[endpoint])
+        c = session_config(listen=[endpoint], allow_any_interface=True)
+        assert json.loads(c.get_json("listen/endpoints")) == [endpoint]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "pattern"),
+    [
+        ({"listen": ["garbage"]}, r"listen endpoint 'garbage' is invalid"),
+        ({"connect": ["tcp:127.0.0.1"]}, r"connect endpoint 'tcp:127.0.0.1' is invalid"),
+        ({"connect": "tcp/127.0.0.1:1"}, r"must be a list of strings"),
+        ({"mode": "server"}, r"zenoh mode 'server' is invalid"),
+        ({"mode": "client"}, r"client mode needs at least one connect endpoint"),
+        ({"mode": "client", "connect": ["tcp/127.0.0.1:1"], "listen": ["tcp/127.0.0.1:2"]},
+         r"client mode cannot listen"),
+    ],
+)  # fmt: skip
+def test_invalid_options(kwargs: dict[str, object], pattern: str) -> None:
+    with pytest.raises(ConfigError, match=pattern):
+        session_config(**kwargs)  # type: ignore[arg-type]
+
+
+def test_config_file_is_passed_through(tmp_path: Path) -> None:
+    path = tmp_path / "zenoh.json5"
+    path.write_text(
+        "{\n  // deployment file\n  mode: 'client',\n"
+        "  connect: { endpoints: ['tcp/192.0.2.1:7447'] },\n"
+        "  scouting: { multicast: { enabled: true } },\n}\n"
+    )
+    c = session_config(config_file=path)
+    assert json.loads(c.get_json("mode")) == "client"
+    assert json.loads(c.get_json("connect/endpoints")) == ["tcp/192.0.2.1:7447"]
+    assert json.loads(c.get_json("scouting/multicast/enabled")) is True  # unchanged
+    with pytest.raises(ConfigError, match=r"given together with mode/listen/connect"):
+        session_config(config_file=path, listen=["tcp/127.0.0.1:0"])
+    with pytest.raises(ConfigError, match=r"zenoh config file .*missing.json5"):
+        session_config(config_file=tmp_path / "missing.json5")
+
+
+# ------------------------------------------------------------------ real sessions
+def test_default_session_listens_nowhere_and_scouts_nothing() -> None:
+    tcp_before = _own_sockets("tcp", listening_only=True)
+    udp_before = _own_sockets("udp", listening_only=False)
+    with open_session() as session:
+        assert not session.is_closed()
+        assert _own_sockets("tcp", listening_only=True) - tcp_before == set()
+        assert _own_sockets("udp", listening_only=False) - udp_before == set()
+
+
+def test_ephemeral_listen_is_loopback_only() -> None:
+    before = _own_sockets("tcp", listening_only=True)
+    with open_session(listen=["tcp/127.0.0.1:0"]):
+        new = _own_sockets("tcp", listening_only=True) - before
+        assert len(new) == 1
+        (_inode, host, port) = new.pop()
+        assert host == "127.0.0.1" and port > 0
+
+
+def test_explicit_port_and_conflict() -> None:
+    port = _free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    before = _own_sockets("tcp", listening_only=True)
+    with open_session(listen=[endpoint]):
+        assert {(h, p) for _, h, p in _own_sockets("tcp", listening_only=True) - before} == {
+            ("127.0.0.1", port)}  # fmt: skip
+        with pytest.raises(ConfigError, match=rf"cannot open zenoh session .*{port}"):
+            open_session(listen=[endpoint])
+
+
+def test_client_mode_without_router_fails_cleanly() -> None:
+    with pytest.raises(ConfigError, match=r"cannot open zenoh session \(mode=client"):
+        open_session(mode="client", connect=[f"tcp/127.0.0.1:{_free_port()}"])
