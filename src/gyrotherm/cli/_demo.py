@@ -28,7 +28,7 @@ from gyrotherm.compensation import default_scaling, features, fit
 from gyrotherm.daemon import Daemon, RunSummary, parse_config
 from gyrotherm.estimators import EstimatorConfig
 from gyrotherm.sim import PAPER_HEATING_MIN, GyroParams, SocketcandServer, chamber_runs
-from gyrotherm.sim._stream import frames_from_run, play
+from gyrotherm.sim._stream import FlushingSink, frames_from_run, play
 
 
 def _free_port() -> int:
@@ -116,7 +116,7 @@ def _stream(run: Any, cal_path: Path, *, speed: float) -> tuple[RunSummary, _Liv
                         on_rate=view.on_rate, on_state=view.on_state) as sub:
             sub.wait_for(lambda s: s.health.received >= 1, timeout_s=30.0)
             frames = frames_from_run(run, encoder=FrameEncoder())
-            played = play(frames, server, speed=speed)
+            played = play(frames, FlushingSink(server), speed=speed)
             server.flush(30.0)
             n_rate = played.rate_frames
             sub.wait_for(lambda s: s.rate.received >= n_rate, timeout_s=30.0)

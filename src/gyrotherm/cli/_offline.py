@@ -145,6 +145,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     ch.add_argument("--validation", action="store_true",
                     help="name runs valid-… and draw seeds apart from fitting runs")
     ch.set_defaults(func=cmd_sim_chamber)
+    from gyrotherm.cli import _stream as _stream_cli
+
+    _stream_cli.register(sim_sub)
 
     f = sub.add_parser("fit", help="fit a bias model to run files and write a calibration")
     f.add_argument("runs", nargs="+", help="run files (CSV version 1)")

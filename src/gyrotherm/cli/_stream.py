@@ -53,7 +53,8 @@ from gyrotherm.sim._stream import (
 INTERFACES = ("socketcand-server", "socketcand", "socketcan", "virtual", "none")
 DEFAULT_HOST, DEFAULT_PORT, DEFAULT_HEATING_MIN = "127.0.0.1", 29536, 60.0
 FLUSH_TIMEOUT_S = 10.0  # for clients to take what was sent, at the end and every 4096 frames
-_PROGRESS_INTERVAL_S = 10.0
+STOP_FLUSH_TIMEOUT_S = 2.0  # the same after SIGTERM (the units allow 10 s to stop)
+_PROGRESS_INTERVAL_S = 60.0  # stderr status line period (the journal, for the units)
 _WAIT_POLL_S = 0.2
 
 
@@ -231,7 +232,7 @@ def cmd_stream(args: argparse.Namespace) -> int:
             stats = play(frames, sink, speed=args.speed, stop=stop, progress=report,
                          progress_interval_s=_PROGRESS_INTERVAL_S, max_frames=args.max_frames)
             if server is not None:
-                flushed = server.flush(FLUSH_TIMEOUT_S)
+                flushed = server.flush(STOP_FLUSH_TIMEOUT_S if stats.stopped else FLUSH_TIMEOUT_S)
                 clients = server.client_stats()
                 extra["clients"] = len(clients)
                 extra["dropped"] = sum(c.frames_dropped for c in clients)

@@ -346,6 +346,10 @@ def frames_from_candump(
     :class:`PlayStats`; every frame is replayed, mapped or not.
     """
     layout = resolve_layout(dbc_path, signal_map or SignalMap.default())
+    try:
+        Path(path).open("rb").close()  # fail now, not at the first frame played
+    except OSError as exc:
+        raise DecodeError(f"{path}: cannot open candump log: {exc}") from exc
     return FrameStream(_without_channel(read_candump(path)), kinds=frame_kinds(layout))
 
 
