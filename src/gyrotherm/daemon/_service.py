@@ -162,8 +162,8 @@ class Daemon:
         queryable = session.declare_queryable(k.calibration, self._on_query)
         self._started = time.monotonic()
         log.info("up: %s %s → %s", cfg.can.interface, cfg.can.channel, k.rate)
-        self._notifier.ready(status=self._status_line())
         self.ready.set()
+        self._notifier.ready(status=self._status_line())
         try:
             self._loop(bus, pipeline, sink)
         finally:
