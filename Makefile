@@ -7,7 +7,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 DEVSTAMP := $(VENV)/.installed-dev
 
-.PHONY: demo test setup setup-dev lint typecheck bench findings clean
+.PHONY: demo test setup setup-dev bench findings clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -32,6 +32,9 @@ test: $(DEVSTAMP)
 
 bench: $(DEVSTAMP)
 	$(PY) bench/run_all.py
+
+findings: $(STAMP)
+	$(PY) scripts/findings.py
 
 clean:
 	rm -rf $(VENV) build dist .pytest_cache .mypy_cache .ruff_cache

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 
 from gyrotherm import __version__
 from gyrotherm._errors import GyrothermError
-from gyrotherm.cli import _demo, _offline, _run
+from gyrotherm.cli import _demo, _diagnose, _offline, _run
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -21,6 +21,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     _offline.register(sub)
     _run.register(sub)
+    _diagnose.register(sub)
     _demo.register(sub)
     sub.add_parser("listen", help="live view of a sensor's Zenoh stream (see: listen --help)")
     return parser

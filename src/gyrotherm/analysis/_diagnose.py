@@ -1,0 +1,312 @@
+"""``diagnose``: which physical effect do the paper model and the simulator miss?
+
+1. Prepare the runs (:mod:`._prep`), fit the baseline (paper model, one
+   offset per run) and score it leave-one-run-out (:mod:`._select`).
+2. Calibrate gyrotherm's simulator to the runs, replay their temperature
+   histories and compare residual statistics of measured and simulated
+   output (:mod:`._simulate`, :mod:`._stats`).
+3. Select effects (forward selection with held-out and penalised criteria),
+   refit the extended model, replay it through the extended simulator, and
+   report (schema ``gyrotherm.diagnosis/1``).
+
+``gain`` = baseline held-out RMS / model held-out RMS. A finding's
+``heldout_rms_dps`` and ``gain`` are those of the baseline plus that effect
+alone; its ``params`` come from the extended (joint) fit. Held-out RMS is on
+1-s blocks with the left-out run's own mean residual (its switch-on offset)
+removed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from gyrotherm._errors import CalibrationError
+from gyrotherm.analysis._effects import EFFECTS, ExtendedModel
+from gyrotherm.analysis._prep import (
+    DEFAULT_TAU_S,
+    Prepared,
+    Readout,
+    characterise,
+    estimator_for,
+    fit_tau,
+    prepare,
+    with_tau,
+)
+from gyrotherm.analysis._select import Evaluation, Selection, Selector, select
+from gyrotherm.analysis._simulate import SimCalibration, calibrate, replay
+from gyrotherm.analysis._stats import gauss_markov_fit, mismatch_order, residual_statistics
+from gyrotherm.codecs import AXES, Run
+from gyrotherm.compensation import Scaling
+
+SCHEMA = "gyrotherm.diagnosis/1"
+
+
+@dataclass(frozen=True)
+class Finding:
+    effect: str
+    params: Mapping[str, float]
+    evidence: str
+    heldout_rms_dps: float
+    gain: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"effect": self.effect, "params": dict(self.params), "evidence": self.evidence,
+                "heldout_rms_dps": self.heldout_rms_dps, "gain": self.gain}
+
+
+@dataclass(frozen=True)
+class Mismatch:
+    statistic: str
+    measured: float
+    simulated: float
+    simulated_extended: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"statistic": self.statistic, "measured": self.measured,
+                               "simulated": self.simulated}
+        if self.simulated_extended is not None:
+            out["simulated_extended"] = self.simulated_extended
+        return out
+
+
+@dataclass(frozen=True)
+class SimulationComparison:
+    calibration: SimCalibration
+    runs: tuple[Run, ...]
+    prepared: tuple[Prepared, ...]
+    residuals: tuple[np.ndarray, ...]
+    extended_runs: tuple[Run, ...]
+    extended_prepared: tuple[Prepared, ...]
+    mismatch: tuple[Mismatch, ...]
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """Everything the diagnosis found, with what the report needs to plot it."""
+
+    axis: str
+    prepared: tuple[Prepared, ...]
+    baseline: ExtendedModel
+    extended: ExtendedModel
+    selection: Selection
+    findings: tuple[Finding, ...]
+    baseline_heldout_rms_dps: float
+    extended_heldout_rms_dps: float
+    residuals: tuple[np.ndarray, ...]
+    extended_residuals: tuple[np.ndarray, ...]
+    heldout_baseline: tuple[float, ...]
+    heldout_extended: tuple[float, ...]
+    tau_s: float
+    tau_from_chamber: bool
+    simulation: SimulationComparison | None = None
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def gain(self) -> float:
+        return self.baseline_heldout_rms_dps / self.extended_heldout_rms_dps
+
+    def to_dict(self) -> dict[str, Any]:
+        sim = self.simulation
+        return {
+            "schema": SCHEMA,
+            "axis": self.axis,
+            "runs": [p.name for p in self.prepared],
+            "baseline": {"model": "paper", "heldout_rms_dps": self.baseline_heldout_rms_dps},
+            "findings": [f.to_dict() for f in self.findings],
+            "extended": {
+                "model": self.extended.name,
+                "effects": [e for e in EFFECTS if e in self.extended.effects],
+                "heldout_rms_dps": self.extended_heldout_rms_dps,
+                "gain": self.gain,
+            },
+            "simulation": {
+                "mismatch": [m.to_dict() for m in sim.mismatch] if sim else [],
+                "calibration": sim.calibration.to_dict() if sim else None,
+            },
+            "notes": list(self.notes),
+        }
+
+
+def _default_axis(runs: Sequence[Run]) -> str:
+    for a in AXES:
+        if a in runs[0].rates_dps:
+            return a
+    raise CalibrationError(f"{runs[0].source}: run {runs[0].name!r} has no rate column")
+
+
+def _check(runs: Sequence[Prepared]) -> None:
+    spans = [float(np.ptp(p.temperature_c)) if len(p) else 0.0 for p in runs]
+    if sum(s >= 1.0 for s in spans) < 2:
+        listing = ", ".join(f"{p.name}: {s:.2f} °C" for p, s in zip(runs, spans, strict=True))
+        raise CalibrationError(
+            "diagnosis needs at least 2 runs whose temperature changes by ≥ 1 °C within the "
+            f"run (spans {listing}): "
+            "with one offset per run, a temperature model is fitted on changes within runs"
+        )
+
+
+def _residuals(sel: Selector, ev: Evaluation) -> list[np.ndarray]:
+    return sel.residuals(ev.effects, ev.coefficients)
+
+
+def _evidence(name: str, selection: Selection, final_drop_gain: float | None, n_runs: int) -> str:
+    alone = selection.alone[name]
+    base = selection.baseline
+    improved = int(np.sum(alone.heldout_sse < base.heldout_sse))
+    n_eff = min(base.n_eff, alone.n_eff)
+    dbic = alone.bic(n_eff) - base.bic(n_eff)
+    text = (f"alone: held-out RMS {base.heldout_rms_dps:.5f} → {alone.heldout_rms_dps:.5f} °/s, "
+            f"better on {improved}/{n_runs} left-out runs; ΔBIC_eff = {dbic:.1f} "
+            f"(n_eff = {n_eff:.0f})")
+    if final_drop_gain is not None:
+        text += f"; in the extended model it buys a further ×{final_drop_gain:.3f}"
+    return text
+
+
+def diagnose(
+    runs: Sequence[Run],
+    *,
+    axis: str | None = None,
+    margin: float = 0.10,
+    simulate: bool = True,
+    seed: int = 0,
+    features: str = "smooth",
+    progress: Callable[[str], None] | None = None,
+) -> Diagnosis:
+    """Diagnose ``runs`` (≥ 2, one device) on ``axis`` (default: first rate column)."""
+    say = progress or (lambda _msg: None)
+    if len(runs) < 2:
+        raise CalibrationError(
+            f"diagnosis needs at least 2 runs (leave-one-run-out), got {len(runs)}")
+    axis = axis or _default_axis(runs)
+    for r in runs:
+        if axis not in r.rates_dps:
+            raise CalibrationError(
+                f"{r.source}: run {r.name!r} has no rate axis {axis!r} (has {list(r.axes)})")
+    readouts = [characterise(r, axis) for r in runs]
+    est = estimator_for(readouts)
+    say(f"preparing {len(runs)} runs (axis {axis})")
+    prepared = [prepare(r, axis, est, features=features) for r in runs]
+    tau_fit = fit_tau(prepared)
+    tau_s, heating = (tau_fit if tau_fit else (DEFAULT_TAU_S, 0.0))
+    prepared = [with_tau(p, tau_s) for p in prepared]
+    _check(prepared)
+    notes = [] if tau_fit else [
+        "no chamber_c column: τ fixed at 120 s (ΔT coefficients scale with 1/τ)"]
+    scaling = Scaling.from_data(np.concatenate([p.temperature_c for p in prepared]),
+                                np.concatenate([p.delta_t_c for p in prepared]))
+    selector = Selector(prepared, scaling)
+    say("selecting effects (leave-one-run-out)")
+    selection = select(selector, margin=margin, progress=say)
+    base_ev, final_ev = selection.baseline, selection.final
+    baseline = selector.model(base_ev)
+    extended = selector.model(final_ev)
+    params = extended.params()
+    findings = []
+    for name in final_ev.effects:
+        rest = {k: v for k, v in final_ev.effects.items() if k != name}
+        drop = selector.evaluate(rest) if rest else None
+        drop_gain = drop.heldout_rms_dps / final_ev.heldout_rms_dps if drop else None
+        alone = selection.alone[name]
+        findings.append(Finding(
+            effect=name,
+            params=params[name],
+            evidence=_evidence(name, selection, drop_gain, len(runs)),
+            heldout_rms_dps=alone.heldout_rms_dps,
+            gain=base_ev.heldout_rms_dps / alone.heldout_rms_dps,
+        ))
+    findings.sort(key=lambda f: -f.gain)
+    resid = _residuals(selector, base_ev)
+    ext_resid = _residuals(selector, final_ev)
+    held_b = tuple(math.sqrt(s / n) for s, n in zip(base_ev.heldout_sse, base_ev.heldout_n,
+                                                   strict=True))
+    held_e = tuple(math.sqrt(s / n) for s, n in zip(final_ev.heldout_sse, final_ev.heldout_n,
+                                                   strict=True))
+    diagnosis = Diagnosis(
+        axis=axis, prepared=tuple(prepared), baseline=baseline, extended=extended,
+        selection=selection, findings=tuple(findings),
+        baseline_heldout_rms_dps=base_ev.heldout_rms_dps,
+        extended_heldout_rms_dps=final_ev.heldout_rms_dps,
+        residuals=tuple(resid), extended_residuals=tuple(ext_resid),
+        heldout_baseline=held_b, heldout_extended=held_e,
+        tau_s=tau_s, tau_from_chamber=tau_fit is not None, notes=tuple(notes),
+    )
+    if not simulate:
+        return diagnosis
+    say("calibrating and replaying the simulator")
+    from dataclasses import replace
+
+    sim = compare_simulation(runs, readouts, diagnosis, est_tau=tau_s, self_heating_c=heating,
+                             seed=seed, features=features)
+    return replace(diagnosis, simulation=sim)
+
+
+def _stats_for(
+    prepared: Sequence[Prepared], scaling: Scaling, readouts: Sequence[Readout]
+) -> tuple[dict[str, float], list[np.ndarray], list[float]]:
+    sel = Selector(prepared, scaling)
+    ev = sel.evaluate({})
+    raw = sel.residuals_raw(ev)
+    offsets = [float(r.mean()) for r in raw]
+    resid = [r - r.mean() for r in raw]
+    arw = float(np.median([r.sample_noise_dps * 60.0 / math.sqrt(r.sample_rate_hz)
+                           for r in readouts]))
+    return residual_statistics(prepared, resid, arw_deg_per_rth=arw, offsets_dps=offsets), \
+        resid, offsets
+
+
+def compare_simulation(
+    runs: Sequence[Run],
+    readouts: Sequence[Readout],
+    diagnosis: Diagnosis,
+    *,
+    est_tau: float,
+    self_heating_c: float,
+    seed: int = 0,
+    features: str = "smooth",
+) -> SimulationComparison:
+    """Calibrate the simulator, replay baseline and extended models, compare statistics."""
+    axis = diagnosis.axis
+    scaling = diagnosis.baseline.scaling
+    measured, resid, offsets = _stats_for(diagnosis.prepared, scaling, readouts)
+
+    def calibrated(residuals: Sequence[np.ndarray]) -> SimCalibration:
+        sigma, tau_gm = gauss_markov_fit(residuals)
+        return calibrate(readouts, axis=axis, tau_s=est_tau, self_heating_c=self_heating_c,
+                         tau_from_chamber=diagnosis.tau_from_chamber, gm_sigma_dps=sigma,
+                         gm_tau_s=tau_gm, offsets_dps=offsets)
+
+    cal = calibrated(resid)
+
+    def run_sim(model: ExtendedModel, cal: SimCalibration) -> tuple[
+        list[Run], list[Prepared], dict[str, float], list[np.ndarray]
+    ]:
+        sims = replay(runs, diagnosis.prepared, cal, model, axis=axis, seed=seed)
+        sim_ro = [characterise(r, axis) for r in sims]
+        est = estimator_for(sim_ro, est_tau)
+        preps = [prepare(r, axis, est, features=features) for r in sims]
+        stats, res, _ = _stats_for(preps, scaling, sim_ro)
+        return sims, preps, stats, res
+
+    sims, preps, sim_stats, sim_resid = run_sim(diagnosis.baseline, cal)
+    if diagnosis.extended.effects:
+        # the extended simulator's noise is calibrated on the extended model's residuals:
+        # the baseline's residuals hold the missed effect, which its noise fit absorbs
+        ext_cal = calibrated(diagnosis.extended_residuals)
+        ext_runs, ext_preps, ext_stats, _ = run_sim(diagnosis.extended, ext_cal)
+    else:
+        ext_runs, ext_preps, ext_stats = sims, preps, sim_stats
+    order = mismatch_order(measured, sim_stats)
+    mismatch = tuple(
+        Mismatch(name, measured[name], sim_stats[name], ext_stats.get(name))
+        for name in order
+        if math.isfinite(measured[name]) and math.isfinite(sim_stats.get(name, math.nan))
+        and math.isfinite(ext_stats.get(name, math.nan))
+    )
+    return SimulationComparison(cal, tuple(sims), tuple(preps), tuple(sim_resid),
+                                tuple(ext_runs), tuple(ext_preps), mismatch)

@@ -1,0 +1,60 @@
+"""``gyrotherm diagnose`` through its argparse registration (a local parser)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import pytest
+
+from gyrotherm._errors import CalibrationError, RunFileError
+from gyrotherm.analysis import SynthConfig, synth_runs
+from gyrotherm.cli import _diagnose
+from gyrotherm.codecs import write_run
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser()
+    sub = p.add_subparsers(dest="command", required=True)
+    _diagnose.register(sub)
+    return p
+
+
+def test_cli_writes_schema_json_and_report(tmp_path: Path) -> None:
+    runs, _ = synth_runs(SynthConfig(duration_s=2400.0, rate_hz=5.0,
+                                     effects={"drift": {"slope_dps_per_h": 0.15}}),
+                         n_runs=3, seed=9)
+    paths = [str(write_run(r, tmp_path / f"{r.name}.csv")) for r in runs]
+    out = tmp_path / "out.json"
+    args = _parser().parse_args(["diagnose", *paths, "--json", str(out),
+                                 "--report", str(tmp_path / "rep")])
+    assert args.func(args) == 0
+    data = json.loads(out.read_text())
+    assert data["schema"] == "gyrotherm.diagnosis/1"
+    assert data["axis"] == "x"
+    assert data["baseline"]["model"] == "paper"
+    assert [f["effect"] for f in data["findings"]] == ["drift"]
+    assert data["findings"][0]["params"]["slope_dps_per_h"] == pytest.approx(0.15, rel=0.3)
+    assert data["extended"]["gain"] > 1.1
+    stats = {m["statistic"] for m in data["simulation"]["mismatch"]}
+    assert {"drift_dps_per_h", "allan_deviation_10s_dps"} <= stats
+    for name in ("report.md", "measured_vs_simulated.png", "residual_vs_temperature.png",
+                 "residual_vs_time.png", "before_after.png"):
+        assert (tmp_path / "rep" / name).stat().st_size > 0
+
+
+def test_cli_errors_name_the_problem(tmp_path: Path) -> None:
+    runs, _ = synth_runs(SynthConfig(duration_s=900.0, rate_hz=2.0), n_runs=1, seed=1)
+    one = str(write_run(runs[0], tmp_path / "one.csv"))
+    args = _parser().parse_args(["diagnose", one, "--json", str(tmp_path / "o.json")])
+    with pytest.raises(CalibrationError, match="at least 2 runs"):
+        args.func(args)
+    log = tmp_path / "bus.log"
+    log.write_text("(1.000000) can0 123#00\n")
+    args = _parser().parse_args(["diagnose", one, str(log), "--json", "-"])
+    with pytest.raises(RunFileError, match="candump"):
+        args.func(args)
+    args = _parser().parse_args(["diagnose", one, one, "--json", "-", "--axis", "y"])
+    with pytest.raises(RunFileError, match="share a name"):
+        args.func(args)
