@@ -293,7 +293,7 @@ def test_protocol_commands_and_errors(server: SocketcandServer) -> None:
 
 
 def test_slow_client_is_bounded_and_counted() -> None:
-    limit, n = 64, 3_000
+    limit, n = 64, 3_072  # a multiple of the 32-frame chunks below
     with SocketcandServer(client_queue_frames=limit, client_sndbuf_bytes=4096) as server:
         stalled = socket.socket()
         stalled.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
