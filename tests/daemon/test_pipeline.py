@@ -92,6 +92,44 @@ def test_publish_errors_are_counted_not_raised(short_runs: list[Run]) -> None:
     assert c.frames_published == 10  # the state messages
 
 
+class UnmatchedSink(RecordingSink):
+    """Sends every payload but reports "no subscriber matched" while ``matched`` is False."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.matched = True
+        self.delivered: list[bytes] = []
+
+    def put_rate(self, payload: bytes) -> bool:
+        super().put_rate(payload)
+        if self.matched:
+            self.delivered.append(payload)
+        return self.matched
+
+    def put_state(self, payload: bytes) -> bool:
+        super().put_state(payload)
+        return self.matched
+
+
+def test_unmatched_messages_are_dropped_as_no_subscriber_and_spend_their_seq(
+    short_runs: list[Run],
+) -> None:
+    sink = UnmatchedSink()
+    pipe = Pipeline(FrameDecoder(), sink, calibration=None)
+    frames = list(run_frames(short_runs[0].slice(0, 30), FrameEncoder()))  # 30 temp + 30 rate
+    for i, msg in enumerate(frames):
+        sink.matched = not 20 <= i < 40  # rows 10..19 go out while nobody listens
+        pipe.process(msg, 0.0)
+    c = pipe.counters()
+    assert c.drops == {"no_subscriber": 20}
+    assert c.frames_received == 60 == c.frames_published + 20
+    assert c.rate_published == 20 and c.state_published == 20
+    # every message went out with its own seq: a subscriber sees 10 missing rates
+    assert [decode_rate(p).seq for p in sink.rates] == list(range(30))
+    seen = [decode_rate(p).seq for p in sink.delivered]
+    assert seen == [*range(10), *range(20, 30)]
+
+
 def test_flags_before_temperature_without_calibration_and_when_stale(
     short_runs: list[Run], stream_calibration: Calibration
 ) -> None:

@@ -121,8 +121,9 @@ class HealthMessage:
     """Daemon health (key ``…/health``), once a second.
 
     ``sensor_time_s`` is None before the first frame. ``drops`` counts discarded
-    frames by reason (e.g. ``"decode_error"``, ``"counter_jump"``, ``"publish_error"``);
-    it is stored as a read-only mapping. ``calibration_id`` is "" without calibration.
+    frames by reason (e.g. ``"decode_error"``, ``"counter_jump"``, ``"publish_error"``,
+    ``"no_subscriber"``); it is stored as a read-only mapping. ``calibration_id`` is ""
+    without calibration.
     """
 
     seq: int

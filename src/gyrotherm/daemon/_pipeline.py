@@ -8,8 +8,13 @@ where T and ΔT change.
 
 Accounting: every frame handed to :meth:`process` is either published (a rate
 frame as a ``rate`` message, a temperature frame as a ``state`` message) or
-dropped with a reason (the decoder's reject reasons, ``publish_error``), so
-``frames_received == frames_published + sum(drops.values())`` at all times.
+dropped with a reason, so ``frames_received == frames_published +
+sum(drops.values())`` at all times. Reasons: the decoder's reject reasons;
+``publish_error`` (the sink raised: the message never left and the next one
+reuses its ``seq``); ``no_subscriber`` (the sink sent the message but no
+subscriber matched it — router or link down, or nobody subscribed — so nobody
+received it; its ``seq`` is spent, which is how a subscriber that comes back
+sees the gap).
 Before the first temperature frame rates are published uncorrected
 (bias 0) with ``TEMPERATURE_STALE | ESTIMATOR_WARMUP`` set.
 """
@@ -36,15 +41,24 @@ from gyrotherm.estimators import EstimatorConfig, TemperatureEstimate, Temperatu
 
 #: Temperature readings fused before the estimate counts as converged.
 WARMUP_UPDATES = 20
+#: Drop reason: the sink raised :class:`PublishError`; the message never left.
+PUBLISH_ERROR = "publish_error"
+#: Drop reason: the message was sent (``seq`` spent) but no subscriber matched it.
+NO_SUBSCRIBER = "no_subscriber"
 _ZERO = (0.0, 0.0, 0.0)
 
 
 class Sink(Protocol):
-    """Where payloads go; each call may raise :class:`PublishError`."""
+    """Where payloads go; each call may raise :class:`PublishError`.
 
-    def put_rate(self, payload: bytes) -> None: ...
+    A call returns ``False`` when the payload was sent but no subscriber matched
+    it (nobody received it: dropped as ``no_subscriber``), ``True`` or ``None``
+    when it was published.
+    """
 
-    def put_state(self, payload: bytes) -> None: ...
+    def put_rate(self, payload: bytes) -> bool | None: ...
+
+    def put_state(self, payload: bytes) -> bool | None: ...
 
 
 @dataclass(frozen=True)
@@ -138,11 +152,14 @@ class Pipeline:
             self._rate_seq, t, receive_time_s, (x - b[0], y - b[1], z - b[2]), (x, y, z), b,
             flags))
         try:
-            self._sink.put_rate(payload)
+            routed = self._sink.put_rate(payload)
         except PublishError:
-            self._drops["publish_error"] += 1
+            self._drops[PUBLISH_ERROR] += 1
             return
         self._rate_seq += 1
+        if routed is False:
+            self._drops[NO_SUBSCRIBER] += 1
+            return
         self._rate_published += 1
 
     def _on_temperature(self, s: TemperatureSample, receive_time_s: float) -> None:
@@ -189,11 +206,14 @@ class Pipeline:
             est.delta_t_c if est else nan, est.delta_t_std_c if est else nan,
             self._bias, self._flags)
         try:
-            self._sink.put_state(encode_state(msg))
+            routed = self._sink.put_state(encode_state(msg))
         except PublishError:
-            self._drops["publish_error"] += 1
+            self._drops[PUBLISH_ERROR] += 1
             return
         self._state_seq += 1
+        if routed is False:
+            self._drops[NO_SUBSCRIBER] += 1
+            return
         self._state_published += 1
 
     def tick(self) -> None:
