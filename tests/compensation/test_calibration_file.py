@@ -91,3 +91,31 @@ def test_not_json_and_missing_file(tmp_path: Path) -> None:
     p.write_text("[1, 2]")
     with pytest.raises(CalibrationError, match="expected a JSON object"):
         load_calibration(p)
+
+
+def test_absurd_json_is_a_calibration_error(calibration: Calibration, tmp_path: Path) -> None:
+    p = tmp_path / "bad.json"
+    doc = calibration.to_dict()
+    doc["coefficients"]["x"][0] = 10**400  # valid JSON, not a float
+    p.write_text(json.dumps(doc))
+    with pytest.raises(CalibrationError, match=r"coefficients.x.*too large"):
+        load_calibration(p)
+    p.write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(CalibrationError, match=f"{p}"):
+        load_calibration(p)
+    doc = calibration.to_dict()
+    doc["model"]["terms"] = ["T^x", "T", "dT", "T*dT", "1"]
+    p.write_text(json.dumps(doc))
+    with pytest.raises(CalibrationError, match=r"bad.json: field 'model.terms'"):
+        load_calibration(p)
+
+
+def test_read_calibration_ids_the_bytes_parsed(calibration: Calibration, tmp_path: Path) -> None:
+    import hashlib
+
+    from gyrotherm.compensation import read_calibration
+
+    p = calibration.save(tmp_path / "cal.json")
+    cal, cid = read_calibration(p)
+    assert cid == hashlib.sha256(p.read_bytes()).hexdigest()[:16]
+    assert cal.coefficients == calibration.coefficients

@@ -36,7 +36,6 @@ temperature_signal = "Temperature"
 stale_after_s = 2.0
 [zenoh]
 listen = ["tcp/127.0.0.1:7500"]
-congestion_control = "drop"
 """)
     cfg = load_config(cfg_file)
     assert cfg.calibration == tmp_path / "cal.json"
@@ -69,6 +68,16 @@ def test_shipped_configs_load(name: str) -> None:
         ('vehicle = "v"\nsensor = "a"\n[zenoh]\nconfig = "z.json5"\nmode = "peer"',
          "'config' excludes"),
         ('vehicle = "v"\nsensor = "a"\n[estimator]\ntau_s = -1', r"estimator.tau_s = -1"),
+        ('vehicle = "v"\nsensor = "a"\n[zenoh]\nmode = "bogus"', "mode 'bogus' is not"),
+        ('vehicle = "v"\nsensor = "a"\n[zenoh]\nmode = "client"',
+         r"\[zenoh\]: zenoh client mode needs at least one connect endpoint"),
+        ('vehicle = "v"\nsensor = "a"\n[zenoh]\nlisten = ["tcp/0.0.0.0:7447"]',
+         "listens on all interfaces"),
+        ('vehicle = "v"\nsensor = "a"\n[zenoh]\ncongestion_control = "drop"',
+         r"unknown key\(s\) \['congestion_control'\]"),
+        ('vehicle = "v"\nsensor = "a"\n[can]\ninterface = "virtual"\nhost = "h"',
+         "apply only to interface 'socketcand'"),
+        ('vehicle = "v"\nsensor = "a"\n[can]\nbitrate = 2000000', "bitrate = 2000000"),
     ],
 )
 def test_bad_configs_name_the_key(tmp_path: Path, toml: str, message: str) -> None:
@@ -87,3 +96,9 @@ def test_not_toml_and_missing(tmp_path: Path) -> None:
         load_config(tmp_path / "absent.toml")
     with pytest.raises(ConfigError, match="must be a table"):
         parse_config({"vehicle": "v", "sensor": "s", "can": 3})
+
+
+def test_client_mode_listens_nowhere_by_default() -> None:
+    cfg = parse_config({"vehicle": "v", "sensor": "s",
+                        "zenoh": {"mode": "client", "connect": ["tcp/127.0.0.1:7447"]}})
+    assert cfg.zenoh.listen == ()

@@ -5,6 +5,8 @@ from gyrotherm.compensation._calibration import (
     Calibration,
     ValidRange,
     load_calibration,
+    parse_calibration,
+    read_calibration,
 )
 from gyrotherm.compensation._fit import (
     METHODS,
@@ -44,5 +46,7 @@ __all__ = [
     "leave_one_out",
     "load_calibration",
     "mean_coefficients",
+    "parse_calibration",
+    "read_calibration",
     "score",
 ]

@@ -18,6 +18,7 @@ raises :class:`gyrotherm.CalibrationError` naming the file and field.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from collections.abc import Mapping
@@ -165,18 +166,34 @@ class Calibration:
 
 def load_calibration(path: str | Path) -> Calibration:
     """Read and validate a calibration file; CalibrationError names file and field."""
+    return read_calibration(path)[0]
+
+
+def read_calibration(path: str | Path) -> tuple[Calibration, str]:
+    """The calibration in ``path`` and its id: the first 16 hex digits of the sha256
+    of the very bytes parsed (so the id always names the content loaded)."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
+        raw = p.read_bytes()
+    except OSError as exc:
         raise CalibrationError(f"{p}: cannot read calibration file: {exc}") from exc
+    return parse_calibration(raw, source=str(p)), hashlib.sha256(raw).hexdigest()[:16]
+
+
+def parse_calibration(raw: bytes | str, *, source: str = "<memory>") -> Calibration:
+    """Validate calibration JSON text; CalibrationError names ``source`` and the field."""
     try:
+        text = raw.decode("utf-8") if isinstance(raw, bytes) else raw
         data = json.loads(text)
+    except UnicodeDecodeError as exc:
+        raise CalibrationError(f"{source}: not UTF-8 text (byte {exc.start})") from exc
     except json.JSONDecodeError as exc:
         raise CalibrationError(
-            f"{p}: line {exc.lineno}: not valid JSON ({exc.msg})"
+            f"{source}: line {exc.lineno}: not valid JSON ({exc.msg})"
         ) from exc
-    return _parse(data, str(p))
+    except (RecursionError, ValueError) as exc:  # absurd nesting, huge integers
+        raise CalibrationError(f"{source}: unreadable JSON ({exc})") from exc
+    return _parse(data, source)
 
 
 def _get(data: Any, path: str, kind: type | tuple[type, ...], source: str) -> Any:
@@ -192,7 +209,10 @@ def _get(data: Any, path: str, kind: type | tuple[type, ...], source: str) -> An
 
 
 def _num(data: Any, path: str, source: str) -> float:
-    v = float(_get(data, path, (int, float), source))
+    try:
+        v = float(_get(data, path, (int, float), source))
+    except OverflowError:
+        raise CalibrationError(f"{source}: field {path!r}: number too large") from None
     if not math.isfinite(v):
         raise CalibrationError(f"{source}: field {path!r}: not a finite number ({v!r})")
     return v
@@ -221,7 +241,11 @@ def _parse(data: Any, source: str) -> Calibration:
     except CalibrationError as exc:
         raise CalibrationError(f"{source}: field 'model.name': {exc}") from exc
     terms = _get(data, "model.terms", list, source)
-    if [Term.parse(str(t)) for t in terms] != list(model.terms):
+    try:
+        parsed = [Term.parse(str(t)) for t in terms]
+    except CalibrationError as exc:
+        raise CalibrationError(f"{source}: field 'model.terms': {exc}") from exc
+    if parsed != list(model.terms):
         raise CalibrationError(
             f"{source}: field 'model.terms': {terms!r} do not match model "
             f"{model.name!r} terms {list(model.term_names)!r}"

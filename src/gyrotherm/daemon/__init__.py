@@ -9,7 +9,7 @@ from gyrotherm.daemon._config import (
 )
 from gyrotherm.daemon._pipeline import Counters, Pipeline, Sink
 from gyrotherm.daemon._sdnotify import Notifier
-from gyrotherm.daemon._service import Daemon, RunSummary, calibration_id
+from gyrotherm.daemon._service import Daemon, RunSummary
 
 __all__ = [
     "CanConfig",
@@ -21,7 +21,6 @@ __all__ = [
     "RunSummary",
     "Sink",
     "ZenohConfig",
-    "calibration_id",
     "load_config",
     "parse_config",
 ]

@@ -16,6 +16,7 @@ Example (every key; relative paths are relative to the config file)::
     dbc = "gyro.dbc"                  # optional, default: the shipped DBC
     on_counter_jump = "deliver"       # deliver | reject
     recv_timeout_s = 0.2              # longest wait for a frame before housekeeping, s
+    reopen_after_s = 5.0              # no frame for this long: close and reopen the bus, s
 
     [can.signals]                     # optional: message/signal names in your DBC
     rate_message = "GyroRate"         # (all SignalMap fields, see docs/wire-format.md)
@@ -26,9 +27,8 @@ Example (every key; relative paths are relative to the config file)::
     [zenoh]
     config = "/etc/gyrotherm/zenoh.json5"   # a Zenoh JSON5 file, passed through; or:
     mode = "peer"                           # peer | client | router
-    listen = ["tcp/127.0.0.1:7447"]
+    listen = ["tcp/127.0.0.1:7447"]         # default; [] in client mode
     connect = []
-    congestion_control = "block"            # block | drop (rate messages)
 
 Errors are :class:`gyrotherm.ConfigError` naming the file and the key.
 """
@@ -42,7 +42,7 @@ from pathlib import Path
 from typing import Any
 
 from gyrotherm._errors import ConfigError
-from gyrotherm._zenoh import keys
+from gyrotherm._zenoh import keys, session_config
 from gyrotherm.codecs import DEFAULT_DBC_PATH, SignalMap
 from gyrotherm.estimators import EstimatorConfig
 
@@ -62,6 +62,7 @@ class CanConfig:
     signals: SignalMap = field(default_factory=SignalMap.default)
     on_counter_jump: str = "deliver"
     recv_timeout_s: float = 0.2
+    reopen_after_s: float = 5.0
 
 
 @dataclass(frozen=True)
@@ -72,7 +73,6 @@ class ZenohConfig:
     mode: str = "peer"
     listen: tuple[str, ...] = ("tcp/127.0.0.1:7447",)
     connect: tuple[str, ...] = ()
-    congestion_control: str = "block"
 
 
 @dataclass(frozen=True)
@@ -142,19 +142,22 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
     where = f"{source}: [can]"
     c = _table(data, "can", source)
     _unknown(c, {"interface", "channel", "bitrate", "host", "port", "dbc", "signals",
-                 "on_counter_jump", "recv_timeout_s"}, where)
+                 "on_counter_jump", "recv_timeout_s", "reopen_after_s"}, where)
     interface = _take(c, "interface", str, where, "socketcan")
     if interface not in INTERFACES:
         raise ConfigError(f"{where}: interface {interface!r} is not one of {INTERFACES}")
     bitrate = _take(c, "bitrate", int, where, None)
-    if bitrate is not None and not 10_000 <= bitrate <= 8_000_000:
-        raise ConfigError(f"{where}: bitrate = {bitrate} is outside [10000, 8000000] bit/s")
+    if bitrate is not None and not 10_000 <= bitrate <= 1_000_000:
+        raise ConfigError(f"{where}: bitrate = {bitrate} is outside [10000, 1000000] bit/s "
+                          "(classic CAN)")
     port = _take(c, "port", int, where, None)
     if port is not None and not 1 <= port <= 65535:
         raise ConfigError(f"{where}: port = {port} is outside [1, 65535]")
     host = _take(c, "host", str, where, None)
     if interface == "socketcand" and (host is None or port is None):
         raise ConfigError(f"{where}: interface 'socketcand' needs 'host' and 'port'")
+    if interface != "socketcand" and (host is not None or port is not None):
+        raise ConfigError(f"{where}: 'host' and 'port' apply only to interface 'socketcand'")
     jump = _take(c, "on_counter_jump", str, where, "deliver")
     if jump not in ("deliver", "reject"):
         raise ConfigError(f"{where}: on_counter_jump {jump!r} is not 'deliver' or 'reject'")
@@ -173,28 +176,35 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
         on_counter_jump=jump,
         recv_timeout_s=_bounded(_take(c, "recv_timeout_s", (int, float), where, 0.2), 0.001,
                                 2.0, f"{where}: recv_timeout_s"),
+        reopen_after_s=_bounded(_take(c, "reopen_after_s", (int, float), where, 5.0), 0.5,
+                                3600.0, f"{where}: reopen_after_s"),
     )
 
     where = f"{source}: [zenoh]"
     z = _table(data, "zenoh", source)
-    _unknown(z, {"config", "mode", "listen", "connect", "congestion_control"}, where)
+    _unknown(z, {"config", "mode", "listen", "connect"}, where)
     zfile = _take(z, "config", str, where, None)
     if zfile is not None and ({"mode", "listen", "connect"} & set(z)):
         raise ConfigError(f"{where}: 'config' excludes 'mode', 'listen' and 'connect'")
-    listen = _take(z, "listen", list, where, ["tcp/127.0.0.1:7447"])
+    mode = _take(z, "mode", str, where, "peer")
+    if mode not in ("peer", "client", "router"):
+        raise ConfigError(f"{where}: mode {mode!r} is not 'peer', 'client' or 'router'")
+    listen = _take(z, "listen", list, where,
+                   [] if mode == "client" else ["tcp/127.0.0.1:7447"])
     connect = _take(z, "connect", list, where, [])
     for name, eps in (("listen", listen), ("connect", connect)):
         if not all(isinstance(e, str) for e in eps):
             raise ConfigError(f"{where}: {name} must be a list of endpoint strings, got {eps!r}")
-    congestion = _take(z, "congestion_control", str, where, "block")
-    if congestion not in ("block", "drop"):
-        raise ConfigError(f"{where}: congestion_control {congestion!r} is not 'block' or 'drop'")
+    if zfile is None:  # the same checks the session will make, now, naming the file
+        try:
+            session_config(mode=mode, listen=listen, connect=connect)
+        except ConfigError as exc:
+            raise ConfigError(f"{where}: {exc}") from exc
     zenoh = ZenohConfig(
         config_file=None if zfile is None else _path(base, zfile),
-        mode=_take(z, "mode", str, where, "peer"),
+        mode=mode,
         listen=tuple(listen),
         connect=tuple(connect),
-        congestion_control=congestion,
     )
     est_table = _table(data, "estimator", source)
     return DaemonConfig(

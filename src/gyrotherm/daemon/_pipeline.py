@@ -14,13 +14,16 @@ sum(drops.values())`` at all times. Reasons: the decoder's reject reasons;
 reuses its ``seq``); ``no_subscriber`` (the sink sent the message but no
 subscriber matched it — router or link down, or nobody subscribed — so nobody
 received it; its ``seq`` is spent, which is how a subscriber that comes back
-sees the gap).
+sees the gap); ``bad_timestamp`` (a non-finite frame time stamp);
+``internal_error`` (an unexpected exception while processing the frame: logged,
+and the stream goes on).
 Before the first temperature frame rates are published uncorrected
 (bias 0) with ``TEMPERATURE_STALE | ESTIMATOR_WARMUP`` set.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 from collections import Counter
 from dataclasses import dataclass
@@ -39,12 +42,18 @@ from gyrotherm.codecs._wire import (
 from gyrotherm.compensation import Calibration
 from gyrotherm.estimators import EstimatorConfig, TemperatureEstimate, TemperatureEstimator
 
+log = logging.getLogger("gyrotherm.daemon")
+
 #: Temperature readings fused before the estimate counts as converged.
 WARMUP_UPDATES = 20
 #: Drop reason: the sink raised :class:`PublishError`; the message never left.
 PUBLISH_ERROR = "publish_error"
 #: Drop reason: the message was sent (``seq`` spent) but no subscriber matched it.
 NO_SUBSCRIBER = "no_subscriber"
+#: Drop reason: the frame's time stamp is not a finite number of seconds.
+BAD_TIMESTAMP = "bad_timestamp"
+#: Drop reason: an unexpected exception while processing the frame (logged).
+INTERNAL_ERROR = "internal_error"
 _ZERO = (0.0, 0.0, 0.0)
 
 
@@ -83,8 +92,10 @@ class Pipeline:
         *,
         calibration: Calibration | None,
         estimator: EstimatorConfig | None = None,
+        check_counters: bool = True,
     ) -> None:
         self._decoder = decoder
+        self._check_counters = check_counters
         self._sink = sink
         self._default_estimator = estimator or EstimatorConfig()
         self._received = 0
@@ -122,17 +133,32 @@ class Pipeline:
     # --- hot path ----------------------------------------------------------------------
 
     def process(self, msg: Any, receive_time_s: float) -> None:
-        """Handle one CAN frame received at wall-clock ``receive_time_s`` (s)."""
+        """Handle one CAN frame received at wall-clock ``receive_time_s`` (s).
+
+        Never raises: a frame that cannot be handled is dropped with a reason
+        (``bad_timestamp`` for a non-finite time stamp, ``internal_error`` for an
+        unexpected exception, logged), and the stream goes on.
+        """
         self._received += 1
-        result = self._decoder.decode(msg)
-        kind = type(result)
-        if kind is RateSample:
-            self._on_rate(result, receive_time_s)  # type: ignore[arg-type]
-        elif kind is TemperatureSample:
-            self._on_temperature(result, receive_time_s)  # type: ignore[arg-type]
-        else:
-            assert isinstance(result, Rejection)
-            self._drops[result.reason.value] += 1
+        try:
+            result = self._decoder.decode(msg)
+            kind = type(result)
+            if kind is RateSample or kind is TemperatureSample:
+                if not math.isfinite(result.time_s):
+                    self._drops[BAD_TIMESTAMP] += 1
+                elif kind is RateSample:
+                    self._on_rate(result, receive_time_s)  # type: ignore[arg-type]
+                else:
+                    self._on_temperature(result, receive_time_s)  # type: ignore[arg-type]
+            else:
+                assert isinstance(result, Rejection)
+                self._drops[result.reason.value] += 1
+        except Exception:
+            self._drops[INTERNAL_ERROR] += 1
+            n = self._drops[INTERNAL_ERROR]
+            if n & (n - 1) == 0:  # log the 1st, 2nd, 4th, 8th … occurrence
+                log.exception("frame %d could not be processed (%d so far); "
+                              "dropped as internal_error", self._received, n)
 
     def _on_rate(self, s: RateSample, receive_time_s: float) -> None:
         t = s.time_s
@@ -140,7 +166,7 @@ class Pipeline:
         flags = self._flags
         if t - self._last_temperature_s > self._estimator.config.stale_after_s:
             flags |= StatusFlags.TEMPERATURE_STALE
-        if s.counter is not None:
+        if s.counter is not None and self._check_counters:
             last = self._last_counter
             if last is not None and s.counter != (last + 1) & 0xF:
                 flags |= StatusFlags.COUNTER_JUMP
@@ -148,11 +174,10 @@ class Pipeline:
             self._last_counter = s.counter
         b = self._bias
         x, y, z = s.rate_x_dps, s.rate_y_dps, s.rate_z_dps
-        payload = encode_rate(RateMessage(
-            self._rate_seq, t, receive_time_s, (x - b[0], y - b[1], z - b[2]), (x, y, z), b,
-            flags))
         try:
-            routed = self._sink.put_rate(payload)
+            routed = self._sink.put_rate(encode_rate(RateMessage(
+                self._rate_seq, t, receive_time_s, (x - b[0], y - b[1], z - b[2]), (x, y, z),
+                b, flags)))
         except PublishError:
             self._drops[PUBLISH_ERROR] += 1
             return
@@ -221,7 +246,10 @@ class Pipeline:
         t = self.last_sensor_time_s
         if (t is not None and self._estimator.initialised
                 and t - self._last_temperature_s > self._estimator.config.stale_after_s):
-            self.last_estimate = self._estimator.predict(t)
+            try:
+                self.last_estimate = self._estimator.predict(t)
+            except (ArithmeticError, ValueError):  # absurd time stamps: keep the state
+                log.warning("predict-only step to t = %r s failed; estimate kept", t)
             self._refresh_bias()
 
     # --- reporting ---------------------------------------------------------------------
@@ -241,8 +269,10 @@ class Pipeline:
         )
 
     def health(self, *, seq: int, receive_time_s: float, uptime_s: float,
-               calibration_id: str) -> HealthMessage:
+               calibration_id: str, extra_flags: StatusFlags = StatusFlags.NONE
+               ) -> HealthMessage:
+        """A health message; ``extra_flags`` adds what only the caller knows (a silent bus)."""
         c = self.counters()
         return HealthMessage(seq, self.last_sensor_time_s, receive_time_s, uptime_s,
-                             c.frames_received, c.frames_published, c.drops, self._flags,
-                             calibration_id)
+                             c.frames_received, c.frames_published, c.drops,
+                             self._flags | extra_flags, calibration_id)

@@ -23,38 +23,36 @@ zenoh's (``connect/retry`` in the Zenoh config), the daemon keeps running.
 
 from __future__ import annotations
 
-import hashlib
+import contextlib
 import logging
+import math
 import signal
 import threading
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from types import FrameType
 from typing import Any
 
+import can
 import zenoh
 
-from gyrotherm._errors import CalibrationError, GyrothermError, PublishError
+from gyrotherm._errors import GyrothermError, PublishError
 from gyrotherm._zenoh import keys, session_config
 from gyrotherm.codecs import FrameDecoder
 from gyrotherm.codecs._wire import (
     CalibrationInfo,
+    HealthMessage,
+    StatusFlags,
     encode_calibration_info,
     encode_health,
 )
-from gyrotherm.compensation import Calibration, load_calibration
+from gyrotherm.compensation import Calibration, read_calibration
 from gyrotherm.daemon._config import DaemonConfig
 from gyrotherm.daemon._pipeline import Pipeline
 from gyrotherm.daemon._sdnotify import Notifier
 from gyrotherm.sim import FrameSource, open_bus
 
 log = logging.getLogger("gyrotherm.daemon")
-
-
-def calibration_id(path: Path) -> str:
-    """First 16 hex digits of the file's sha256: names the loaded calibration."""
-    return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
 
 
 def _matching(publisher: zenoh.Publisher) -> bool:
@@ -76,8 +74,9 @@ class _ZenohSink:
 
     def __init__(self, session: zenoh.Session, config: DaemonConfig) -> None:
         k = keys(config.vehicle, config.sensor)
-        cc = (zenoh.CongestionControl.BLOCK if config.zenoh.congestion_control == "block"
-              else zenoh.CongestionControl.DROP)
+        # BLOCK: a message zenoh accepts is never discarded for a full queue, so
+        # "published" means sent; a stuck network stalls the loop and the watchdog fires.
+        cc = zenoh.CongestionControl.BLOCK
         self._session = session
         self.rate = session.declare_publisher(k.rate, congestion_control=cc)
         self.state = session.declare_publisher(k.state, congestion_control=cc)
@@ -138,6 +137,24 @@ class _ZenohSink:
             p.undeclare()
 
 
+class _ClosedBus(FrameSource):
+    """Stands in for a bus that could not be reopened: receives nothing."""
+
+    def __init__(self) -> None:
+        self._quiet = threading.Event()  # never set: recv waits like a quiet bus
+
+    def recv(self, timeout_s: float | None = None) -> can.Message | None:
+        self._quiet.wait(min(timeout_s or 0.0, 0.2))
+        return None
+
+    @property
+    def is_shutdown(self) -> bool:
+        return False
+
+    def shutdown(self) -> None:
+        return None
+
+
 @dataclass(frozen=True)
 class RunSummary:
     """What a daemon run did (returned by :meth:`Daemon.run`)."""
@@ -168,9 +185,15 @@ class Daemon:
         self._sink: _ZenohSink | None = None
         self._started = time.monotonic()
         self._health_seq = 0
+        self._last_health = -math.inf
+        self._last_frame = time.monotonic()
+        self._last_reopen = -math.inf
+        self.bus_reopens = 0
         if config.calibration is not None:
-            self._calibration = load_calibration(config.calibration)
-            self._calibration_id = calibration_id(config.calibration)
+            self._calibration, self._calibration_id = read_calibration(config.calibration)
+        # What the queryable answers, replaced whole by the loop thread (never mutated):
+        # zenoh calls _on_query on its own thread.
+        self._snapshot = CalibrationInfo(self._calibration_id, self._calibration_dict(), None)
 
     # --- control (thread-safe) -----------------------------------------------------
 
@@ -196,7 +219,7 @@ class Daemon:
 
     # --- the loop --------------------------------------------------------------------
 
-    def _open_bus(self, decoder: FrameDecoder) -> FrameSource:
+    def _open_bus(self) -> FrameSource:
         c = self.config.can
         return open_bus(interface=c.interface, channel=c.channel, bitrate=c.bitrate,
                         host=c.host, port=c.port)
@@ -209,39 +232,39 @@ class Daemon:
         z = cfg.zenoh
         zconf = (session_config(config_file=z.config_file) if z.config_file else
                  session_config(mode=z.mode, listen=z.listen, connect=z.connect))  # type: ignore[arg-type]
-        bus = source or self._open_bus(decoder)
-        try:
-            session = zenoh.open(zconf)
-        except zenoh.ZError as exc:
-            bus.shutdown()
-            raise GyrothermError(f"cannot open zenoh session: {exc}") from exc
-        sink = _ZenohSink(session, cfg)
-        self._sink = sink
-        pipeline = Pipeline(decoder, sink, calibration=self._calibration,
-                            estimator=cfg.estimator)
-        self._pipeline = pipeline
-        k = keys(cfg.vehicle, cfg.sensor)
-        queryable = session.declare_queryable(k.calibration, self._on_query)
-        self._started = time.monotonic()
-        log.info("up: %s %s → %s", cfg.can.interface, cfg.can.channel, k.rate)
-        self.ready.set()
-        self._notifier.ready(status=self._status_line())
-        try:
-            self._loop(bus, pipeline, sink)
-        finally:
-            self._notifier.stopping(status="stopping")
-            queryable.undeclare()
-            sink.undeclare()
-            session.close()
-            bus.shutdown()
+        with contextlib.ExitStack() as stack:
+            # every resource is released in reverse order, whatever fails later
+            self._bus = source or self._open_bus()
+            stack.callback(lambda: self._bus.shutdown())
+            try:
+                session = zenoh.open(zconf)
+            except zenoh.ZError as exc:
+                raise GyrothermError(f"cannot open zenoh session: {exc}") from exc
+            stack.callback(session.close)
+            sink = _ZenohSink(session, cfg)
+            stack.callback(sink.undeclare)
+            self._sink = sink
+            pipeline = Pipeline(decoder, sink, calibration=self._calibration,
+                                estimator=cfg.estimator,
+                                check_counters=cfg.can.on_counter_jump == "deliver")
+            self._pipeline = pipeline
+            k = keys(cfg.vehicle, cfg.sensor)
+            self._reply_key = k.calibration
+            queryable = session.declare_queryable(k.calibration, self._on_query)
+            stack.callback(queryable.undeclare)
+            stack.callback(lambda: self._notifier.stopping(status="stopping"))
+            self._started = self._last_frame = time.monotonic()
+            log.info("up: %s %s → %s", cfg.can.interface, cfg.can.channel, k.rate)
+            self.ready.set()
+            self._notifier.ready(status=self._status_line())
+            self._loop(pipeline, sink, reopen=source is None)
         c = pipeline.counters()
         log.info("stopped: %d frames in, %d published, drops %s", c.frames_received,
                  c.frames_published, c.drops)
         return RunSummary(c.frames_received, c.frames_published, c.drops, self.reloads,
                           self.reload_failures, time.monotonic() - self._started)
 
-    def _loop(self, bus: FrameSource, pipeline: Pipeline, sink: _ZenohSink) -> None:
-        recv = bus.recv
+    def _loop(self, pipeline: Pipeline, sink: _ZenohSink, *, reopen: bool) -> None:
         process = pipeline.process
         now_wall = time.time
         mono = time.monotonic
@@ -250,6 +273,7 @@ class Daemon:
         next_tick = mono()
         stop = self._stop
         while not stop.is_set():
+            recv = self._bus.recv
             msg = recv(timeout)
             if msg is not None:
                 process(msg, now_wall())
@@ -259,9 +283,28 @@ class Daemon:
                     if msg is None:
                         break
                     process(msg, now_wall())
+                self._last_frame = mono()
             if mono() >= next_tick:
                 next_tick = mono() + min(period, 0.25)
                 self._housekeeping(pipeline, sink)
+                quiet_since = max(self._last_frame, self._last_reopen)
+                if reopen and mono() - quiet_since > self.config.can.reopen_after_s:
+                    self._reopen_bus()
+
+    def _reopen_bus(self) -> None:
+        """No frame for ``reopen_after_s``: close and open the bus again (a dead
+        socketcand peer, a bus-off controller); failures are logged and retried."""
+        self._last_reopen = time.monotonic()
+        self.bus_reopens += 1
+        log.warning("no CAN frame for %.1f s: reopening %s %s (reopen %d)",
+                    self.config.can.reopen_after_s, self.config.can.interface,
+                    self.config.can.channel, self.bus_reopens)
+        self._bus.shutdown()
+        try:
+            self._bus = self._open_bus()
+        except GyrothermError as exc:
+            log.error("reopening the bus failed, retrying later: %s", exc)
+            self._bus = _ClosedBus()
 
     def _housekeeping(self, pipeline: Pipeline, sink: _ZenohSink) -> None:
         self._notifier.watchdog()
@@ -269,16 +312,18 @@ class Daemon:
             self._reload.clear()
             self._do_reload(pipeline)
         now = time.monotonic()
-        if now - getattr(self, "_last_health", -1e9) >= self.config.health_period_s:
+        if now - self._last_health >= self.config.health_period_s:
             self._last_health = now
             pipeline.tick()
-            health = self._health()
-            if health is not None:
-                try:
-                    sink.health.put(encode_health(health))
-                    self._health_seq += 1
-                except zenoh.ZError as exc:
-                    log.warning("health publish failed: %s", exc)
+            silent = now - self._last_frame > pipeline.stale_after_s
+            health = self._health(pipeline, silent=silent)
+            try:
+                sink.health.put(encode_health(health))
+                self._health_seq += 1
+            except zenoh.ZError as exc:
+                log.warning("health publish failed: %s", exc)
+            self._snapshot = CalibrationInfo(self._calibration_id, self._calibration_dict(),
+                                             health)
             self._notifier.status(self._status_line())
 
     def _do_reload(self, pipeline: Pipeline) -> None:
@@ -288,32 +333,32 @@ class Daemon:
             log.warning("SIGHUP: no calibration file configured; nothing to reload")
         else:
             try:
-                cal = load_calibration(path)
-                cid = calibration_id(path)
-            except (CalibrationError, OSError) as exc:
+                cal, cid = read_calibration(path)
+                pipeline.set_calibration(cal)
+            except Exception as exc:  # a bad file must never stop the daemon
                 self.reload_failures += 1
                 log.error("calibration reload failed, keeping %s: %s",
                           self._calibration_id or "none", exc)
             else:
-                pipeline.set_calibration(cal)
                 self._calibration, self._calibration_id = cal, cid
                 self.reloads += 1
                 log.info("calibration reloaded: %s (%s)", path, cid)
+                self._snapshot = CalibrationInfo(cid, self._calibration_dict(),
+                                                 self._snapshot.health)
         self._notifier.ready(status=self._status_line())
 
-    def _health(self) -> Any:
-        p = self._pipeline
-        if p is None:
-            return None
-        return p.health(seq=self._health_seq, receive_time_s=time.time(),
-                        uptime_s=time.monotonic() - self._started,
-                        calibration_id=self._calibration_id)
+    def _calibration_dict(self) -> dict[str, Any] | None:
+        return self._calibration.to_dict() if self._calibration else None
+
+    def _health(self, pipeline: Pipeline, *, silent: bool) -> HealthMessage:
+        extra = StatusFlags.TEMPERATURE_STALE if silent else StatusFlags.NONE
+        return pipeline.health(seq=self._health_seq, receive_time_s=time.time(),
+                               uptime_s=time.monotonic() - self._started,
+                               calibration_id=self._calibration_id, extra_flags=extra)
 
     def _on_query(self, query: zenoh.Query) -> None:
-        cal = self._calibration
-        info = CalibrationInfo(self._calibration_id, cal.to_dict() if cal else None,
-                               self._health())
-        query.reply(query.key_expr, encode_calibration_info(info))
+        # runs on a zenoh thread: read the one immutable snapshot, nothing else
+        query.reply(self._reply_key, encode_calibration_info(self._snapshot))
 
     def _status_line(self) -> str:
         p = self._pipeline

@@ -12,8 +12,11 @@ its environment, ``τ·dT/dt = T_env − T``, so ``ΔT = T_env − T = τ·Ṫ``
 ``σ_ΔT = τ·σ_Ṫ`` (see docs/model.md). Measurements whose innovation exceeds
 ``gate_sigma`` standard deviations are rejected as spikes; after
 ``max_consecutive_rejections`` rejections in a row the filter re-initialises
-on the reading (a real step, not a spike). Without measurements the state is
-only predicted, and flagged stale once ``stale_after_s`` passes.
+on the reading (a real step, not a spike). A reading stamped more than
+``stale_after_s`` before the filter's time (the time base stepped back) also
+re-initialises it; smaller steps back are fused at the filter's time.
+Without measurements the state is only predicted, and flagged stale once
+``stale_after_s`` passes.
 
 The filterpy ``KalmanFilter`` is private: callers see frozen
 :class:`TemperatureEstimate` values, never the mutable ``x`` / ``P``.
@@ -124,6 +127,7 @@ class TemperatureEstimate:
     stale: bool
     rejected: bool
     updates: int
+    """Readings fused since the last (re-)initialisation."""
 
 
 class TemperatureEstimator:
@@ -147,6 +151,9 @@ class TemperatureEstimator:
         """Readings gated out as spikes since construction."""
         self.reinitialisations = 0
         """Re-initialisations after repeated rejections."""
+        self.time_resets = 0
+        """Re-initialisations because a reading's time was more than ``stale_after_s``
+        before the filter's time (the time base stepped back)."""
 
     @property
     def config(self) -> EstimatorConfig:
@@ -165,7 +172,7 @@ class TemperatureEstimator:
         self._last_reading_s = time_s
         self._rejections = 0
         self._rejected = False
-        self._updates += 1
+        self._updates = 1
 
     def _predict_to(self, time_s: float) -> None:
         assert self._time_s is not None
@@ -199,6 +206,11 @@ class TemperatureEstimator:
         if self._time_s is None:
             self._init(time_s, temperature_c)
             return
+        if time_s < self._time_s - self._cfg.stale_after_s:
+            # the time base stepped back (clock step, restarted log): start again
+            self.time_resets += 1
+            self._init(time_s, temperature_c)
+            return
         self._predict_to(time_s)
         innovation = temperature_c - float(self._kf.x[0, 0])
         s = float(self._kf.P[0, 0]) + self._cfg.measurement_variance_c2
@@ -221,8 +233,9 @@ class TemperatureEstimator:
         return float(self._kf.x[0, 0]), float(self._kf.x[1, 0])
 
     def predict(self, time_s: float) -> TemperatureEstimate:
-        """Advance to ``time_s`` without a reading (predict-only)."""
-        if self._time_s is not None:
+        """Advance to ``time_s`` without a reading (predict-only); a non-finite
+        ``time_s`` leaves the state unchanged."""
+        if self._time_s is not None and math.isfinite(time_s):
             self._predict_to(time_s)
         return self.estimate(time_s)
 
