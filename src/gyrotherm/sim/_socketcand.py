@@ -4,31 +4,13 @@ The machine has no SocketCAN, so the simulator serves the ASCII protocol of
 socketcand (github.com/linux-can/socketcand, ``doc/protocol.md`` and
 ``state_raw.c``) and the daemon reads it with python-can's own client,
 ``can.Bus(interface="socketcand", host=..., port=..., channel="vcan0")``.
-
-Session, as python-can's client drives it (every reply is its own TCP write)::
-
-    server: < hi >
-    client: < open vcan0 >     server: < ok >       (other channel: error, close)
-    client: < rawmode >        server: < ok >
-    server: < frame 123 1700000000.000042 0102AB >          (11-bit id: 3 hex digits)
-    server: < frame 1ABCDEF0 1700000000.000043  >           (29-bit id: 8 digits, no data)
-    client: < send 123 3 1 2 ab >                           (8 id digits: extended)
-
-``< frame ID SEC.USEC DATA >`` carries the message's own ``timestamp`` (seconds,
-rounded to the microsecond) and the data as contiguous upper-case hex, exactly
-as socketcand prints it. ``< echo >`` is answered with ``< echo >``,
-``< bcmmode >`` stops the stream; any other command gets
-``< error unknown command >``. Classic CAN only (0–8 data bytes, standard and
-extended ids); CAN FD, remote and error frames are rejected with
-:class:`gyrotherm.DecodeError`.
-
-Handshake race: python-can reads ``< ok >`` with one ``recv`` and compares it
-whole, so a frame arriving before that read would break its handshake (not
-seen in testing, but nothing in the protocol prevents it). After
-``< ok >`` to ``< rawmode >`` the server therefore waits (at most 2 s) until the
-peer's socket has no unread bytes, read from ``/proc/net/tcp`` when the peer is
-on this host, else for a fixed 50 ms; only then does the client join the
-broadcast and count in :meth:`SocketcandServer.wait_for_clients`.
+The session, the ``< frame ID SEC.USEC DATA >`` line and the commands answered
+are in :mod:`gyrotherm.sim._socketcand_wire` (classic CAN only; CAN FD, remote
+and error frames are rejected with :class:`gyrotherm.DecodeError`); one
+connection, and the handshake settle wait (a client joins the broadcast only
+once it has read the ``< ok >`` to ``< rawmode >``), in
+:mod:`gyrotherm.sim._socketcand_client`. Every name of both stays importable
+from here.
 
 Back-pressure: :meth:`SocketcandServer.send` never blocks. Each client has a
 bounded queue (``client_queue_frames``) emptied by its own writer thread; when
@@ -45,8 +27,6 @@ bound port on stdout, waits for a client, plays ``N`` :func:`demo_frame` frames.
 from __future__ import annotations
 
 import argparse
-import logging
-import math
 import selectors
 import socket
 import sys
@@ -61,16 +41,20 @@ import can
 
 from gyrotherm._errors import ConfigError, DecodeError
 from gyrotherm.sim._bus import FrameSink, FrameSource
-
-log = logging.getLogger(__name__)
-
-_BATCH_FRAMES = 2048  # frames joined into one sendall by a writer thread
-_MAX_COMMAND_BYTES = 4096  # an unterminated command longer than this closes the client
-_SETTLE_DEADLINE_S = 2.0
-_SETTLE_FALLBACK_S = 0.05
-_SETTLE_POLL_S = 0.0005
-_JOIN_TIMEOUT_S = 2.0
-_QUICKACK: int | None = getattr(socket, "TCP_QUICKACK", None)  # Linux only
+from gyrotherm.sim._socketcand_client import _BATCH_FRAMES as _BATCH_FRAMES
+from gyrotherm.sim._socketcand_client import _JOIN_TIMEOUT_S as _JOIN_TIMEOUT_S
+from gyrotherm.sim._socketcand_client import _MAX_COMMAND_BYTES as _MAX_COMMAND_BYTES
+from gyrotherm.sim._socketcand_client import _QUICKACK as _QUICKACK
+from gyrotherm.sim._socketcand_client import _SETTLE_DEADLINE_S as _SETTLE_DEADLINE_S
+from gyrotherm.sim._socketcand_client import _SETTLE_FALLBACK_S as _SETTLE_FALLBACK_S
+from gyrotherm.sim._socketcand_client import _SETTLE_POLL_S as _SETTLE_POLL_S
+from gyrotherm.sim._socketcand_client import _Client as _Client
+from gyrotherm.sim._socketcand_client import log as log
+from gyrotherm.sim._socketcand_wire import _peer_unread_bytes as _peer_unread_bytes
+from gyrotherm.sim._socketcand_wire import _reject as _reject
+from gyrotherm.sim._socketcand_wire import demo_frame as demo_frame
+from gyrotherm.sim._socketcand_wire import encode_frame as encode_frame
+from gyrotherm.sim._socketcand_wire import parse_send as parse_send
 
 
 @dataclass(frozen=True)
@@ -81,267 +65,6 @@ class ClientStats:
     connected: bool
     frames_sent: int
     frames_dropped: int
-
-
-def _reject(msg: can.Message, why: str) -> DecodeError:
-    return DecodeError(f"frame 0x{msg.arbitration_id:X}: cannot be sent over socketcand: {why}")
-
-
-def encode_frame(msg: can.Message) -> bytes:
-    """The ``< frame ID SEC.USEC DATA >`` line for a classic CAN frame."""
-    arb, data = msg.arbitration_id, msg.data
-    if msg.is_fd or msg.is_remote_frame or msg.is_error_frame:
-        raise _reject(msg, "only classic data frames are supported (no FD, remote, error)")
-    if len(data) > 8 or msg.dlc != len(data):
-        raise _reject(msg, f"dlc {msg.dlc} with {len(data)} data bytes, limit 0..8 and equal")
-    if msg.is_extended_id:
-        if not 0 <= arb <= 0x1FFFFFFF:
-            raise _reject(msg, "extended id outside 0..0x1FFFFFFF")
-        ident = f"{arb:08X}"
-    else:
-        if not 0 <= arb <= 0x7FF:
-            raise _reject(msg, "standard id outside 0..0x7FF")
-        ident = f"{arb:03X}"
-    ts = msg.timestamp
-    if not (ts >= 0.0 and math.isfinite(ts)):
-        raise _reject(msg, f"timestamp {ts!r} s, must be finite and >= 0")
-    sec, usec = divmod(round(ts * 1_000_000), 1_000_000)
-    return f"< frame {ident} {sec}.{usec:06d} {data.hex().upper()} >".encode("ascii")
-
-
-def parse_send(command: str, *, channel: str, timestamp_s: float) -> can.Message:
-    """Decode ``< send ID DLC B0 B1 ... >`` (hex fields; 8 id digits: extended id)."""
-    words = command.strip("<> \t\r\n").split()
-    try:
-        if len(words) < 3 or words[0] != "send":
-            raise ValueError("expected '< send can_id can_dlc [data]* >'")
-        ident, dlc, payload = words[1], int(words[2], 16), words[3:]
-        extended = len(ident) == 8
-        arb = int(ident, 16)
-        if arb > (0x1FFFFFFF if extended else 0x7FF) or arb < 0:
-            raise ValueError(
-                f"id {ident} out of range for {'extended' if extended else 'standard'}"
-            )
-        if not 0 <= dlc <= 8 or len(payload) != dlc:
-            raise ValueError(f"dlc {dlc} with {len(payload)} data bytes, limit 0..8 and equal")
-        data = bytes(int(b, 16) for b in payload)
-    except ValueError as exc:
-        raise DecodeError(f"socketcand command {command!r}: {exc}") from exc
-    return can.Message(
-        timestamp=timestamp_s,
-        arbitration_id=arb,
-        is_extended_id=extended,
-        data=data,
-        is_rx=True,
-        channel=channel,
-    )
-
-
-def demo_frame(index: int) -> can.Message:
-    """Deterministic test frame ``index`` (what ``--frames N`` plays).
-
-    Odd ``index``: extended id ``0x1ABC0000 + index``; even: standard id
-    ``index % 0x800``. Data: ``index % 9`` bytes ``(index + k) % 256``. Timestamp:
-    ``1_700_000_000 s + index ms + (index % 1000) µs``.
-    """
-    extended = index % 2 == 1
-    arb = (0x1ABC0000 + index) & 0x1FFFFFFF if extended else index % 0x800
-    data = bytes((index + k) % 256 for k in range(index % 9))
-    ts_us = 1_700_000_000_000_000 + 1_000 * index + index % 1_000
-    return can.Message(
-        timestamp=ts_us / 1e6, arbitration_id=arb, is_extended_id=extended, data=data
-    )
-
-
-def _peer_unread_bytes(server_port: int, client_port: int) -> int | None:
-    """Bytes the server sent that the local peer has not read yet, or None if unknown."""
-    ours = theirs = None
-    for path in ("/proc/net/tcp", "/proc/net/tcp6"):
-        try:
-            with open(path, encoding="ascii") as table:
-                rows = table.read().splitlines()[1:]
-        except OSError:
-            continue
-        for row in rows:
-            f = row.split()
-            if len(f) < 5 or f[3] != "01":  # 01: ESTABLISHED
-                continue
-            local, remote = int(f[1].rsplit(":", 1)[1], 16), int(f[2].rsplit(":", 1)[1], 16)
-            tx_queue, rx_queue = (int(q, 16) for q in f[4].split(":"))
-            if (local, remote) == (server_port, client_port):
-                ours = tx_queue  # sent but not yet acknowledged by the peer's kernel
-            elif (local, remote) == (client_port, server_port):
-                theirs = rx_queue  # received by the peer's kernel, not yet read
-    if theirs is None:
-        return None
-    return theirs + (ours or 0)
-
-
-class _Client:
-    """One TCP connection: a reader thread (commands) and a writer thread (frames)."""
-
-    def __init__(self, server: SocketcandServer, sock: socket.socket, peer: str) -> None:
-        self.peer = peer
-        self.sent = 0
-        self.dropped = 0
-        self.connected = True
-        self._server, self._sock = server, sock
-        self._queue: deque[bytes] = deque()
-        self._lock = threading.Lock()  # guards _queue, _idle, _closing, dropped
-        self._send_lock = threading.Lock()  # one writer on the socket at a time
-        self._wake = threading.Event()
-        self._idle = True  # writer waits and holds no batch
-        self._closing = False
-        self._opened = False  # "< open CHANNEL >" accepted
-        self._raw = False  # "< rawmode >" accepted and settled
-        self._reader = threading.Thread(
-            target=self._read_loop, name=f"socketcand<{peer}", daemon=True
-        )
-        self._writer = threading.Thread(
-            target=self._write_loop, name=f"socketcand>{peer}", daemon=True
-        )
-
-    def start(self) -> None:
-        self._writer.start()
-        self._reader.start()
-
-    @property
-    def drained(self) -> bool:
-        return self._idle and not self._queue
-
-    def stats(self) -> ClientStats:
-        return ClientStats(self.peer, self.connected, self.sent, self.dropped)
-
-    def enqueue(self, line: bytes) -> None:
-        with self._lock:
-            if len(self._queue) >= self._server.client_queue_frames:
-                self.dropped += 1
-                return
-            self._queue.append(line)
-            if self._idle:
-                self._idle = False
-                self._wake.set()
-
-    def close(self) -> None:
-        """Stop both threads; the reader closes the socket once the writer is done."""
-        with self._lock:
-            self._closing = True
-            self._wake.set()
-        try:
-            self._sock.shutdown(socket.SHUT_RDWR)
-        except OSError:
-            pass
-
-    def join(self, timeout_s: float) -> None:
-        self._reader.join(timeout_s)
-
-    def _send_now(self, data: bytes) -> bool:
-        with self._send_lock:
-            try:
-                self._sock.sendall(data)
-            except OSError:
-                return False
-        return True
-
-    def _write_loop(self) -> None:
-        while True:
-            with self._lock:
-                closing = self._closing
-                if self._queue and not closing:
-                    q = self._queue
-                    if len(q) <= _BATCH_FRAMES:
-                        batch = list(q)
-                        q.clear()
-                    else:
-                        batch = [q.popleft() for _ in range(_BATCH_FRAMES)]
-                else:
-                    batch = []
-                    self._queue.clear()
-                    self._idle = True
-                    self._wake.clear()
-            if not batch:
-                self._server._notify()
-                if closing:
-                    return
-                self._wake.wait()
-            elif self._send_now(b"".join(batch)):
-                self.sent += len(batch)
-            else:
-                self.close()
-
-    def _read_loop(self) -> None:
-        try:
-            if self._send_now(b"< hi >"):
-                self._serve_commands()
-        except OSError:
-            pass
-        finally:
-            self.connected = False
-            self._server._forget(self)
-            self.close()
-            self._writer.join(_JOIN_TIMEOUT_S)
-            self._sock.close()
-
-    def _serve_commands(self) -> None:
-        buf = b""
-        while chunk := self._sock.recv(4096):
-            if _QUICKACK is not None:  # as socketcand: ack now, so Nagle does not stall the peer
-                self._sock.setsockopt(socket.IPPROTO_TCP, _QUICKACK, 1)
-            buf += chunk
-            while (start := buf.find(b"<")) >= 0 and (end := buf.find(b">", start)) >= 0:
-                command, buf = buf[start : end + 1].decode("ascii", "replace"), buf[end + 1 :]
-                if not self._handle(command):
-                    return
-            buf = buf[start:] if start >= 0 else b""  # drop bytes outside "< ... >"
-            if len(buf) > _MAX_COMMAND_BYTES:
-                log.warning(
-                    "socketcand client %s: command longer than %d bytes",
-                    self.peer,
-                    _MAX_COMMAND_BYTES,
-                )
-                return
-
-    def _handle(self, command: str) -> bool:
-        """Answer one command; False closes the connection."""
-        words = command[1:-1].split()
-        verb = words[0] if words else ""
-        if not self._opened:
-            if verb == "open" and len(words) == 2 and words[1] == self._server.channel:
-                self._opened = True
-                return self._send_now(b"< ok >")
-            if verb == "open":
-                self._send_now(b"< error could not open bus >")
-                return False
-        elif verb == "send":
-            self._server._client_frame(self, command)
-            return True
-        elif verb == "echo":
-            return self._send_now(b"< echo >")
-        elif verb == "rawmode":
-            ok = self._send_now(b"< ok >")
-            if ok and not self._raw:
-                self._raw = True
-                self._await_consumed()
-                self._server._activate(self)
-            return ok
-        elif verb == "bcmmode":
-            self._raw = False
-            self._server._deactivate(self)
-            return self._send_now(b"< ok >")
-        return self._send_now(b"< error unknown command >")
-
-    def _await_consumed(self) -> None:
-        """Wait until the peer has read everything sent so far (see the module docstring)."""
-        server_port, client_port = self._sock.getsockname()[1], self._sock.getpeername()[1]
-        deadline = time.monotonic() + _SETTLE_DEADLINE_S
-        stopping = self._server._stopping
-        while True:
-            unread = _peer_unread_bytes(server_port, client_port)
-            if unread is None:
-                stopping.wait(_SETTLE_FALLBACK_S)
-                return
-            if unread == 0 or time.monotonic() >= deadline or stopping.wait(_SETTLE_POLL_S):
-                return
 
 
 def _positive(name: str, value: int) -> int:
@@ -517,7 +240,10 @@ class SocketcandServer(FrameSource, FrameSink):
     def client_stats(self) -> tuple[ClientStats, ...]:
         """Counters of connected clients, then of the last 64 that disconnected."""
         with self._changed:
-            return tuple(c.stats() for c in (*self._clients, *self._gone))
+            return tuple(
+                ClientStats(c.peer, c.connected, c.sent, c.dropped)
+                for c in (*self._clients, *self._gone)
+            )
 
     # -- called by client threads -------------------------------------------------
     def _notify(self) -> None:
