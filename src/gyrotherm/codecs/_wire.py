@@ -173,9 +173,22 @@ def _pack(obj: list[Any], what: str) -> bytes:
 def encode_rate(msg: RateMessage) -> bytes:
     """Encode a rate message (15-element array, ~110 bytes)."""
     r, w, b = msg.rate_dps, msg.raw_rate_dps, msg.bias_dps
+    return encode_rate_values(msg.seq, msg.sensor_time_s, msg.receive_time_s,
+                              r[0], r[1], r[2], w[0], w[1], w[2], b[0], b[1], b[2],
+                              int(msg.flags))  # fmt: skip
+
+
+def encode_rate_values(
+    seq: int, sensor_time_s: float, receive_time_s: float,
+    rate_x: float, rate_y: float, rate_z: float,
+    raw_x: float, raw_y: float, raw_z: float,
+    bias_x: float, bias_y: float, bias_z: float, flags: int,
+) -> bytes:  # fmt: skip
+    """:func:`encode_rate` from plain values, the same bytes (the daemon's hot path:
+    no :class:`RateMessage` is built, ~1 µs less per rate frame)."""
     return _pack(
-        [1, SCHEMA_VERSION, msg.seq, msg.sensor_time_s, msg.receive_time_s,
-         r[0], r[1], r[2], w[0], w[1], w[2], b[0], b[1], b[2], int(msg.flags)],
+        [1, SCHEMA_VERSION, seq, sensor_time_s, receive_time_s, rate_x, rate_y, rate_z,
+         raw_x, raw_y, raw_z, bias_x, bias_y, bias_z, flags],
         "rate",
     )  # fmt: skip
 

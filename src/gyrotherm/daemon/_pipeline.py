@@ -33,10 +33,9 @@ from gyrotherm._errors import PublishError
 from gyrotherm.codecs import FrameDecoder, RateSample, Rejection, TemperatureSample
 from gyrotherm.codecs._wire import (
     HealthMessage,
-    RateMessage,
     StateMessage,
     StatusFlags,
-    encode_rate,
+    encode_rate_values,
     encode_state,
 )
 from gyrotherm.compensation import Calibration
@@ -172,12 +171,12 @@ class Pipeline:
                 flags |= StatusFlags.COUNTER_JUMP
                 self._jumps += 1
             self._last_counter = s.counter
-        b = self._bias
+        b0, b1, b2 = self._bias
         x, y, z = s.rate_x_dps, s.rate_y_dps, s.rate_z_dps
         try:
-            routed = self._sink.put_rate(encode_rate(RateMessage(
-                self._rate_seq, t, receive_time_s, (x - b[0], y - b[1], z - b[2]), (x, y, z),
-                b, flags)))
+            routed = self._sink.put_rate(encode_rate_values(
+                self._rate_seq, t, receive_time_s, x - b0, y - b1, z - b2, x, y, z,
+                b0, b1, b2, int(flags)))
         except PublishError:
             self._drops[PUBLISH_ERROR] += 1
             return
