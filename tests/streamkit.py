@@ -1,11 +1,31 @@
-"""Test helpers for the streaming path: frames from a run, a recording sink, free ports."""
+"""Test helpers for the streaming path: frames from a run, a recording sink, ports.
+
+Ports, without races against other processes (benchmarks, parallel suites):
+
+* where a test owns the zenoh listener, listen on ``tcp/127.0.0.1:0`` and read the
+  port the kernel bound back from the session's admin space
+  (:func:`open_ephemeral`, :func:`listen_locators`);
+* where a port must be chosen before something else opens it (the daemon's
+  config), :func:`free_port` picks from a per-process random stretch of the ports
+  *below* the kernel's ephemeral range (which ``bind(0)``, ``:0`` listeners and
+  outgoing connections use), and :func:`retry_on_address_in_use` repeats the
+  whole open with a fresh port when it still loses the race;
+* where a test needs a port that nobody listens on, :func:`dead_port` holds one
+  bound (never listening) for the duration: connections to it are refused.
+"""
 
 from __future__ import annotations
 
+import json
+import os
+import random
 import socket
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import TypeVar
 
 import can
+import zenoh
 
 from gyrotherm.codecs import FrameEncoder, RateSample, Run, TemperatureSample
 
@@ -34,8 +54,121 @@ class RecordingSink:
         self.states.append(payload)
 
 
+T = TypeVar("T")
+
+_LOWEST_PORT = 10_000
+_handed_out: set[int] = set()
+_rng = random.Random(os.getpid())  # per process: parallel runs start far apart
+
+
+def _ephemeral_low() -> int:
+    try:
+        with open("/proc/sys/net/ipv4/ip_local_port_range") as f:
+            return int(f.read().split()[0])
+    except (OSError, ValueError, IndexError):
+        return 32_768  # the Linux default
+
+
+def _bindable(port: int) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        try:
+            probe.bind(("127.0.0.1", port))  # no SO_REUSEADDR: TIME_WAIT counts as taken
+        except OSError:
+            return False
+    return True
+
+
 def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
+    """A loopback TCP port that is free now, not yet handed out by this process.
+
+    Chosen from a per-process random start in [10000, start of the ephemeral
+    range), so it cannot collide with ports the kernel assigns to ``bind(0)``
+    callers or to outgoing connections. Still a check-then-use: open with
+    :func:`retry_on_address_in_use` when the port is taken in between.
+    """
+    low, high = _LOWEST_PORT, max(_ephemeral_low(), _LOWEST_PORT + 1000)
+    span = high - low
+    start = _rng.randrange(span)
+    for k in range(span):
+        port = low + (start + k) % span
+        if port not in _handed_out and _bindable(port):
+            _handed_out.add(port)
+            return port
+    raise RuntimeError(f"no free loopback port in [{low}, {high})")
+
+
+def is_address_in_use(exc: BaseException) -> bool:
+    """True when ``exc`` (or an exception it was raised from) reports a port in use."""
+    seen: BaseException | None = exc
+    while seen is not None:
+        if isinstance(seen, OSError) and seen.errno == 98:
+            return True
+        if "address already in use" in str(seen).lower():
+            return True
+        seen = seen.__cause__
+    return False
+
+
+def retry_on_address_in_use(open_on: Callable[[int], T], *, attempts: int = 8) -> T:
+    """``open_on(free_port())``, again with a fresh port when the port was taken meanwhile.
+
+    Any other error, or the last "address in use", propagates.
+    """
+    for attempt in range(attempts):
+        try:
+            return open_on(free_port())
+        except Exception as exc:
+            if attempt == attempts - 1 or not is_address_in_use(exc):
+                raise
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+@contextmanager
+def dead_port() -> Iterator[int]:
+    """A loopback port that is bound but never listens: connecting to it is refused."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as holder:
+        holder.bind(("127.0.0.1", 0))
+        port: int = holder.getsockname()[1]
+        yield port
+
+
+def enable_adminspace(config: zenoh.Config) -> zenoh.Config:
+    """Let the session answer its own read-only admin queries (``@/<zid>/**``)."""
+    config.insert_json5(
+        "adminspace", json.dumps({"enabled": True, "permissions": {"read": True, "write": False}})
+    )
+    return config
+
+
+def listen_locators(session: zenoh.Session, *, timeout_s: float = 10.0) -> list[str]:
+    """The locators ``session`` actually listens on (ports resolved), from its admin space.
+
+    The session's config must have gone through :func:`enable_adminspace`.
+    """
+    zid = str(session.zid())
+    for reply in session.get(f"@/{zid}/*", timeout=timeout_s):
+        ok = reply.ok
+        if ok is not None and str(ok.key_expr) in (f"@/{zid}/peer", f"@/{zid}/router"):
+            locators = json.loads(ok.payload.to_string())["locators"]
+            return [str(loc) for loc in locators]
+    raise AssertionError(f"session {zid} did not report its locators (adminspace enabled?)")
+
+
+def open_ephemeral(config: zenoh.Config, *, timeout_s: float = 10.0) -> tuple[zenoh.Session, str]:
+    """Open ``config`` (listening on one ``<proto>/127.0.0.1:0`` endpoint); return the
+    session and the endpoint it really listens on, e.g. ``tcp/127.0.0.1:41977``."""
+    listen = json.loads(config.get_json("listen/endpoints"))
+    if isinstance(listen, dict):
+        listen = listen.get(json.loads(config.get_json("mode")), [])
+    assert len(listen) == 1 and listen[0].endswith("127.0.0.1:0"), listen
+    proto = listen[0].split("/", 1)[0]
+    session = zenoh.open(enable_adminspace(config))
+    try:
+        found = [loc for loc in listen_locators(session, timeout_s=timeout_s)
+                 if loc.startswith(f"{proto}/127.0.0.1:")]  # fmt: skip
+        assert len(found) == 1, f"expected one {proto}/127.0.0.1 locator, got {found}"
+        assert not found[0].endswith(":0")
+    except BaseException:
+        session.close()
+        raise
+    return session, found[0]

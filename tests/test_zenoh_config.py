@@ -11,8 +11,10 @@ from pathlib import Path
 import pytest
 import zenoh
 
+import streamkit
 from gyrotherm import ConfigError
 from gyrotherm._zenoh import is_any_interface, keys, open_session, session_config
+from streamkit import dead_port, open_ephemeral, retry_on_address_in_use
 
 
 # ------------------------------------------------------------------ /proc helpers
@@ -52,12 +54,6 @@ def _own_sockets(proto: str, *, listening_only: bool) -> set[tuple[int, str, int
                 if inode in own and (not listening_only or state == "0A"):
                     out.add((inode, *_addr(fields[1])))
     return out
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def test_proc_address_decoder() -> None:
@@ -187,17 +183,60 @@ def test_ephemeral_listen_is_loopback_only() -> None:
         assert host == "127.0.0.1" and port > 0
 
 
-def test_explicit_port_and_conflict() -> None:
-    port = _free_port()
-    endpoint = f"tcp/127.0.0.1:{port}"
+def test_ephemeral_port_read_back_is_the_bound_socket() -> None:
+    """The tests' race-free listener (streamkit.open_ephemeral) against /proc."""
     before = _own_sockets("tcp", listening_only=True)
-    with open_session(listen=[endpoint]):
+    session, endpoint = open_ephemeral(session_config(listen=["tcp/127.0.0.1:0"]))
+    with session:
+        new = _own_sockets("tcp", listening_only=True) - before
+        assert {(h, p) for _, h, p in new} == {("127.0.0.1", int(endpoint.rsplit(":", 1)[1]))}
+        assert endpoint.startswith("tcp/127.0.0.1:")
+
+
+def test_explicit_port_and_conflict() -> None:
+    before = _own_sockets("tcp", listening_only=True)
+    port, session = retry_on_address_in_use(
+        lambda p: (p, open_session(listen=[f"tcp/127.0.0.1:{p}"]))
+    )
+    with session:
         assert {(h, p) for _, h, p in _own_sockets("tcp", listening_only=True) - before} == {
             ("127.0.0.1", port)}  # fmt: skip
         with pytest.raises(ConfigError, match=rf"cannot open zenoh session .*{port}"):
-            open_session(listen=[endpoint])
+            open_session(listen=[f"tcp/127.0.0.1:{port}"])  # held by the session above
+
+
+def test_port_lost_to_another_process_is_retried(monkeypatch: pytest.MonkeyPatch) -> None:
+    """streamkit.retry_on_address_in_use recognises zenoh's "address in use" and retries."""
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        busy = int(taken.getsockname()[1])
+        handed: list[int] = []
+        real = streamkit.free_port
+
+        def first_busy() -> int:
+            handed.append(busy if not handed else real())
+            return handed[-1]
+
+        monkeypatch.setattr(streamkit, "free_port", first_busy)
+        port, session = retry_on_address_in_use(
+            lambda p: (p, open_session(listen=[f"tcp/127.0.0.1:{p}"]))
+        )
+        with session:
+            assert handed[0] == busy and port == handed[1] != busy
+        with pytest.raises(ConfigError, match="invalid"):  # other errors are not retried
+            retry_on_address_in_use(lambda p: open_session(listen=[f"bogus{p}"]))
+
+
+def test_free_port_is_below_the_ephemeral_range() -> None:
+    with open("/proc/sys/net/ipv4/ip_local_port_range") as f:
+        low = int(f.read().split()[0])
+    ports = [streamkit.free_port() for _ in range(5)]
+    assert len(set(ports)) == 5 and all(10_000 <= p < low for p in ports)
 
 
 def test_client_mode_without_router_fails_cleanly() -> None:
-    with pytest.raises(ConfigError, match=r"cannot open zenoh session \(mode=client"):
-        open_session(mode="client", connect=[f"tcp/127.0.0.1:{_free_port()}"])
+    with dead_port() as port, pytest.raises(
+        ConfigError, match=r"cannot open zenoh session \(mode=client"
+    ):
+        open_session(mode="client", connect=[f"tcp/127.0.0.1:{port}"])

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import socket
 import subprocess
 import sys
 import threading
@@ -18,7 +17,7 @@ import pytest
 import zenoh
 
 from gyrotherm import CalibrationError, ConfigError
-from gyrotherm._zenoh import KeyExprs, keys, open_session
+from gyrotherm._zenoh import KeyExprs, keys, open_session, session_config
 from gyrotherm.client import (
     LatencyTracker,
     SequenceTracker,
@@ -37,16 +36,11 @@ from gyrotherm.codecs._wire import (
     encode_rate,
     encode_state,
 )
+from streamkit import dead_port, open_ephemeral
 
 VEHICLE, SENSOR = "testcar", "imu0"
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "servo_loop.py"
 WAIT_S = 15.0  # generous bound for 2 shared cores; never reached when things work
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def rate(seq: int, *, receive_time_s: float | None = None, z_dps: float = 0.5) -> RateMessage:
@@ -57,7 +51,7 @@ def rate(seq: int, *, receive_time_s: float | None = None, z_dps: float = 0.5) -
 
 @dataclass
 class Daemon:
-    """A stand-in publisher: a zenoh session listening on a test-chosen loopback port."""
+    """A stand-in publisher: a zenoh session listening on a kernel-chosen loopback port."""
 
     endpoint: str
     session: zenoh.Session
@@ -80,8 +74,8 @@ class Daemon:
 
 @pytest.fixture
 def daemon() -> Iterator[Daemon]:
-    endpoint = f"tcp/127.0.0.1:{_free_port()}"
-    with open_session(listen=[endpoint]) as session:
+    session, endpoint = open_ephemeral(session_config(listen=["tcp/127.0.0.1:0"]))
+    with session:
         yield Daemon(endpoint, session, keys(VEHICLE, SENSOR))
 
 
@@ -250,10 +244,11 @@ def test_close_is_idempotent_ends_iteration_and_keeps_given_session(daemon: Daem
 
 
 def test_owned_session_is_closed() -> None:
-    sub = Subscriber(VEHICLE, SENSOR, connect=[f"tcp/127.0.0.1:{_free_port()}"])
-    with sub:
-        assert not sub.session.is_closed()
-    assert sub.session.is_closed()
+    with dead_port() as port:
+        sub = Subscriber(VEHICLE, SENSOR, connect=[f"tcp/127.0.0.1:{port}"])
+        with sub:
+            assert not sub.session.is_closed()
+        assert sub.session.is_closed()
 
 
 def test_invalid_arguments() -> None:
@@ -319,9 +314,10 @@ def test_listen_prints_live_view_and_summary(daemon: Daemon, capsys) -> None:  #
 
 
 def test_listen_times_out_without_publisher(capsys) -> None:  # type: ignore[no-untyped-def]
-    port = _free_port()
-    code = listen_main(["--vehicle", VEHICLE, "--sensor", SENSOR,
-                        "--connect", f"tcp/127.0.0.1:{port}", "--timeout-s", "0.3"])  # fmt: skip
+    with dead_port() as port:  # nobody listens there
+        argv = ["--vehicle", VEHICLE, "--sensor", SENSOR,
+                "--connect", f"tcp/127.0.0.1:{port}", "--timeout-s", "0.3"]  # fmt: skip
+        code = listen_main(argv)
     assert code == 1
     assert "rate: received=0" in capsys.readouterr().out
     assert listen_main(["--vehicle", "a*", "--sensor", SENSOR, "--timeout-s", "0.1"]) == 2

@@ -43,7 +43,7 @@ def test_arrays_are_read_only() -> None:
         run.time_s[0] = 5.0
 
 
-def test_unknown_columns_are_ignored_by_tools() -> None:
+def test_unknown_numeric_columns_are_kept_in_extra() -> None:
     run = parse_run("# gyrotherm-run: 1\ntime_s,humidity,temperature_c,rate_y_dps\n0,50,20,1\n")
     assert run.axes == ("y",)
     assert run.extra["humidity"][0] == 50
@@ -64,7 +64,13 @@ def test_unknown_columns_are_ignored_by_tools() -> None:
         (HEADER + "0,20,0.1\n1,nan,0.2\n", "line 5: column 'temperature_c' is not a finite"),
         (HEADER + "0,20,0.1\n0,21,0.2\n", "line 5: time_s not increasing"),
         (HEADER + "0,20,0.1\n1,21\n", "line 5: expected 3 fields, got 2"),
-        (HEADER + "0,20,0.1\n1,21,abc\n", "line 5: 'abc' is not a number"),
+        (HEADER + "0,20,0.1\n1,21,abc\n", "line 5: column 'rate_x_dps': 'abc' is not a number"),
+        (HEADER + "0,20,0.1\n1,,0.2\n", "line 5: column 'temperature_c' is blank"),
+        (HEADER + "0,20,0.1\n1,21, \n", "line 5: column 'rate_x_dps' is blank"),
+        (HEADER + "0,20,0.1\n1,2_1,0.2\n", "line 5: column 'temperature_c': '2_1' is not a"),
+        (HEADER + "0,20,0.1\n\n1,21,0.2\n", "line 5: blank line inside the data"),
+        (HEADER + "0,20,0.1\n# late comment\n", "line 5: expected 3 fields, got 1"),
+        (HEADER + "0,20,0.1\n1,21,0.2,9\n", "line 5: expected 3 fields, got 4"),
         ("# gyrotherm-run: 1\ntime_s,time_s,temperature_c,rate_x_dps\n", "duplicate columns"),
     ],
 )
@@ -72,6 +78,80 @@ def test_bad_files_name_line_and_problem(text: str, message: str) -> None:
     with pytest.raises(RunFileError, match=message.replace("(", r"\(")) as info:
         parse_run(text, source="bad.csv")
     assert str(info.value).startswith("bad.csv")
+
+
+NOTE_HEADER = "# gyrotherm-run: 1\ntime_s,temperature_c,note,rate_x_dps,humidity\n"
+
+
+@pytest.mark.parametrize(
+    "note",
+    ["abc", "", " ", "nan", "inf", "1_0", "0x10"],
+    ids=["text", "blank", "space", "nan", "inf", "underscore", "hex"],
+)
+def test_unknown_column_that_is_not_all_finite_numbers_is_ignored(note: str) -> None:
+    run = parse_run(NOTE_HEADER + f"0,20,1.5,0.1,40\n1,21,{note},0.2,41\n2,22,3,0.3,42\n")
+    assert "note" not in run.extra
+    np.testing.assert_array_equal(run.extra["humidity"], [40, 41, 42])
+    np.testing.assert_array_equal(run.time_s, [0, 1, 2])
+    np.testing.assert_array_equal(run.temperature_c, [20, 21, 22])
+    np.testing.assert_array_equal(run.rates_dps["x"], [0.1, 0.2, 0.3])
+
+
+def test_unknown_numeric_columns_are_kept_next_to_a_text_column() -> None:
+    text = "# gyrotherm-run: 1\ntime_s,temperature_c,rate_x_dps,a,note,b\n"
+    text += "".join(f"{i},{20 + i},{i / 10},{2 * i},row {i},{-i}\n" for i in range(4))
+    run = parse_run(text)
+    assert set(run.extra) == {"a", "b"}
+    np.testing.assert_array_equal(run.extra["a"], [0, 2, 4, 6])
+    np.testing.assert_array_equal(run.extra["b"], [0, -1, -2, -3])
+
+
+@pytest.mark.parametrize(
+    ("row", "message"),
+    [
+        ("1,21,abc,0.2x,41", "line 4: column 'rate_x_dps': '0.2x' is not a number"),
+        ("1,21,abc,,41", "line 4: column 'rate_x_dps' is blank"),
+        ("1,nan,abc,0.2,41", "line 4: column 'temperature_c' is not a finite number"),
+        ("1,21,abc,0.2", "line 4: expected 5 fields, got 4"),
+    ],
+)
+def test_known_columns_stay_strict_next_to_a_text_column(row: str, message: str) -> None:
+    text = "# gyrotherm-run: 1\ntime_s,temperature_c,note,rate_x_dps,humidity\n"
+    with pytest.raises(RunFileError, match=message) as info:
+        parse_run(text + f"0,20,x,0.1,40\n{row}\n", source="notes.csv")
+    assert str(info.value).startswith("notes.csv: ")
+
+
+def test_text_column_in_a_large_file_is_ignored(tmp_path: Path) -> None:
+    n = 20_000
+    t = np.arange(n) * 0.01
+    lines = [f"{t[i]:.2f},{20 + t[i]:.4f},{i % 7 - 3},ok,{i}\n" for i in range(n)]
+    lines[n - 1] = f"{t[n - 1]:.2f},{20 + t[n - 1]:.4f},1,,{n - 1}\n"  # blank note on the last row
+    path = tmp_path / "big.csv"
+    header = "# gyrotherm-run: 1\ntime_s,temperature_c,rate_z_dps,note,row\n"
+    path.write_text(header + "".join(lines))
+    run = read_run(path)
+    assert len(run) == n and run.axes == ("z",) and set(run.extra) == {"row"}
+    np.testing.assert_array_equal(run.extra["row"], np.arange(n))
+    np.testing.assert_allclose(run.temperature_c, 20 + np.round(t, 2), atol=5e-5)
+
+
+def test_clean_file_takes_one_parsing_pass(monkeypatch: pytest.MonkeyPatch) -> None:
+    from gyrotherm.codecs import _runfile
+
+    calls: list[object] = []
+    real = _runfile._loadtxt
+
+    def counting(text: str, usecols: list[int] | None = None) -> np.ndarray:
+        calls.append(usecols)
+        return real(text, usecols)
+
+    monkeypatch.setattr(_runfile, "_loadtxt", counting)
+    parse_run(HEADER + "".join(f"{i},{20 + i},0.{i}\n" for i in range(100)))
+    assert calls == [None]
+    calls.clear()
+    parse_run(NOTE_HEADER + "".join(f"{i},{20 + i},n{i},0.{i},{i}\n" for i in range(100)))
+    assert calls == [None, [0, 1, 3], [2], [4]]  # all; known; each unknown on its own
 
 
 def test_missing_file_is_a_run_file_error(tmp_path: Path) -> None:

@@ -233,14 +233,14 @@ u64 = st.integers(0, U64_MAX)
 flags = st.integers(0, U64_MAX).map(StatusFlags)
 
 
-@settings(derandomize=True, max_examples=150)
+@settings(derandomize=True, max_examples=150, deadline=None, database=None)
 @given(u64, finite, finite, vec3, vec3, vec3, flags)
 def test_rate_round_trip(seq, t0, t1, r, w, b, fl) -> None:
     msg = RateMessage(seq, t0, t1, r, w, b, fl)
     assert decode_rate(encode_rate(msg)) == msg
 
 
-@settings(derandomize=True, max_examples=100)
+@settings(derandomize=True, max_examples=100, deadline=None, database=None)
 @given(u64, finite, finite, values, values, values, values, vec3, flags)
 def test_state_round_trip(seq, t0, t1, tc, ts, dt, ds, b, fl) -> None:
     msg = StateMessage(seq, t0, t1, tc, ts, dt, ds, b, fl)
@@ -261,7 +261,7 @@ health_st = st.builds(
 )
 
 
-@settings(derandomize=True, max_examples=100)
+@settings(derandomize=True, max_examples=100, deadline=None, database=None)
 @given(health_st)
 def test_health_round_trip(msg: HealthMessage) -> None:
     assert decode_health(encode_health(msg)) == msg
@@ -275,7 +275,7 @@ json_value = st.recursive(
 )
 
 
-@settings(derandomize=True, max_examples=60)
+@settings(derandomize=True, max_examples=60, deadline=None, database=None)
 @given(st.text(max_size=30), st.none() | st.dictionaries(st.text(), json_value, max_size=5),
        st.none() | health_st)  # fmt: skip
 def test_calibration_round_trip(cal_id, cal, health) -> None:
@@ -283,7 +283,7 @@ def test_calibration_round_trip(cal_id, cal, health) -> None:
     assert decode_calibration_info(encode_calibration_info(info)) == info
 
 
-@settings(derandomize=True, max_examples=200)
+@settings(derandomize=True, max_examples=200, deadline=None, database=None)
 @given(st.binary(max_size=64))
 def test_garbage_raises_only_decode_error(data: bytes) -> None:
     decoders = [(decode_rate, RateMessage), (decode_state, StateMessage),

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import socket
 import subprocess
 import threading
 from collections.abc import Iterator
@@ -27,6 +26,8 @@ from typing import Any
 
 import pytest
 import zenoh
+
+from streamkit import open_ephemeral
 
 DEPLOY_ZENOH = Path(__file__).resolve().parents[2] / "deploy" / "zenoh"
 CONFIG_FILES = sorted(DEPLOY_ZENOH.glob("*.json5"))
@@ -166,12 +167,6 @@ def pki(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return directory
 
 
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
-
-
 def _tls_files(config: zenoh.Config, pki: Path, ca: str, name: str) -> None:
     config.insert_json5(
         "transport/link/tls/root_ca_certificate", json.dumps(str(pki / f"{ca}.pem"))
@@ -206,6 +201,16 @@ def _opened(config: zenoh.Config) -> Iterator[zenoh.Session]:
         session.close()
 
 
+@contextmanager
+def _opened_ephemeral(config: zenoh.Config) -> Iterator[tuple[zenoh.Session, str]]:
+    """Open a config listening on ``tls/127.0.0.1:0``; yield it and its real endpoint."""
+    session, endpoint = open_ephemeral(config)
+    try:
+        yield session, endpoint
+    finally:
+        session.close()
+
+
 def _wait_matching(publisher: Any) -> bool:
     """Wait until the publisher sees a matching subscriber (declarations arrived)."""
     matched = threading.Event()
@@ -222,7 +227,6 @@ def _wait_matching(publisher: Any) -> bool:
 
 
 def test_mutual_tls_peers_exchange_a_sample(pki: Path) -> None:
-    endpoint = f"tls/127.0.0.1:{_free_port()}"
     received: list[bytes] = []
     got = threading.Event()
 
@@ -230,9 +234,13 @@ def test_mutual_tls_peers_exchange_a_sample(pki: Path) -> None:
         received.append(bytes(sample.payload.to_bytes()))
         got.set()
 
-    listener_cfg = _tls_node(pki, "gyrotherm-peer", mode="peer", listen=[endpoint], connect=[])
-    talker_cfg = _tls_node(pki, "gyrotherm-daemon", mode="peer", listen=[], connect=[endpoint])
-    with _opened(listener_cfg) as listener, _opened(talker_cfg) as talker:
+    listener_cfg = _tls_node(
+        pki, "gyrotherm-peer", mode="peer", listen=["tls/127.0.0.1:0"], connect=[]
+    )
+    with ExitStack() as stack:
+        listener, endpoint = stack.enter_context(_opened_ephemeral(listener_cfg))
+        talker_cfg = _tls_node(pki, "gyrotherm-daemon", mode="peer", listen=[], connect=[endpoint])
+        talker = stack.enter_context(_opened(talker_cfg))
         subscriber = listener.declare_subscriber("gyrotherm/test/imu0/rate", on_sample)
         publisher = talker.declare_publisher("gyrotherm/test/imu0/rate")
         assert _wait_matching(publisher)
@@ -256,9 +264,8 @@ def test_mutual_tls_peers_exchange_a_sample(pki: Path) -> None:
 
 
 def test_acl_router_drops_a_viewers_publication(pki: Path) -> None:
-    endpoint = f"tls/127.0.0.1:{_free_port()}"
     router_cfg = zenoh.Config.from_file(str(DEPLOY_ZENOH / "acl-router.json5"))
-    router_cfg.insert_json5("listen/endpoints", json.dumps([endpoint]))
+    router_cfg.insert_json5("listen/endpoints", json.dumps(["tls/127.0.0.1:0"]))
     _tls_files(router_cfg, pki, "test-ca", "gyrotherm-router")
     key = "gyrotherm/veh1/imu0/rate"
 
@@ -280,11 +287,12 @@ def test_acl_router_drops_a_viewers_publication(pki: Path) -> None:
         viewer_saw.append(bytes(sample.payload.to_bytes()))
         viewer_got_sample.set()
 
-    def client(name: str) -> zenoh.Config:
-        return _tls_node(pki, name, mode="client", listen=[], connect=[endpoint])
-
     with ExitStack() as stack:
-        stack.enter_context(_opened(router_cfg))
+        _router, endpoint = stack.enter_context(_opened_ephemeral(router_cfg))
+
+        def client(name: str) -> zenoh.Config:
+            return _tls_node(pki, name, mode="client", listen=[], connect=[endpoint])
+
         daemon = stack.enter_context(_opened(client("gyrotherm-daemon")))
         viewer = stack.enter_context(_opened(client("gyrotherm-viewer")))
         daemon.declare_subscriber("gyrotherm/**", daemon_on_sample)

@@ -11,9 +11,13 @@ Layout::
 * ``rate_<axis>_dps``: the static gyro's raw output, °/s; at least one axis.
 * optional ``chamber_c`` (ambient, °C) and ``true_bias_<axis>_dps`` (simulation
   truth: tools read these only to score).
-* unknown columns are ignored.
+* any other column is kept in :attr:`Run.extra` when every value in it is a finite
+  number, and ignored otherwise (text, blanks, ``nan``): tools never fail on it.
 
-A malformed file raises :class:`gyrotherm.RunFileError` naming file, line and problem.
+Known columns are strict: a blank, non-numeric or non-finite value in one is an
+error naming file, line and column.
+
+A malformed file raises :class:`gyrotherm.RunFileError` naming file, line, column and problem.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ import io
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 from numpy.typing import NDArray
@@ -215,14 +220,7 @@ def parse_run(text: str, *, source: str = "<memory>", sha256: str = "") -> Run:
         body.pop()
     if not body:
         raise RunFileError(f"{source}: line {first_data_line}: no data rows")
-    data = _parse_body(body, len(header), source, first_data_line)
-    col = {name: data[:, j] for j, name in enumerate(header)}
-    bad = ~np.isfinite(data)
-    if bad.any():
-        row, j = map(int, np.argwhere(bad)[0])
-        raise RunFileError(
-            f"{source}: line {first_data_line + row}: column {header[j]!r} is not a finite number"
-        )
+    col = _parse_body(body, header, source, first_data_line)
     t = col["time_s"]
     steps = np.diff(t)
     if (steps <= 0).any():
@@ -241,34 +239,124 @@ def parse_run(text: str, *, source: str = "<memory>", sha256: str = "") -> Run:
         metadata=metadata,
         source=source,
         sha256=sha256,
-        extra={h: col[h] for h in header if h not in _KNOWN and not _is_known(h)},
+        extra={h: col[h] for h in header if h in col and not _is_known(h)},
     )
 
 
-_KNOWN = {"time_s", "temperature_c", "chamber_c"}
+_KNOWN = frozenset(
+    {"time_s", "temperature_c", "chamber_c"}
+    | {f"rate_{a}_dps" for a in AXES}
+    | {f"true_bias_{a}_dps" for a in AXES}
+)
 
 
 def _is_known(column: str) -> bool:
-    return any(column in (f"rate_{a}_dps", f"true_bias_{a}_dps") for a in AXES)
+    return column in _KNOWN
 
 
-def _parse_body(body: list[str], width: int, source: str, first_line: int) -> FloatArray:
+def _loadtxt(text: str, usecols: list[int] | None = None) -> FloatArray:
+    data: FloatArray = np.loadtxt(
+        io.StringIO(text),
+        delimiter=",",
+        ndmin=2,
+        dtype=np.float64,
+        comments=None,
+        usecols=usecols,
+    )
+    return data
+
+
+def _parse_body(
+    body: list[str], header: list[str], source: str, first_line: int
+) -> dict[str, FloatArray]:
+    """Columns by header name: every known column, and the unknown ones that are all finite.
+
+    Known columns are strict: a field that is blank, not a number or not finite is
+    an error naming line and column. An unknown column that does not parse as
+    finite numbers throughout is left out (not an error).
+    """
+    text = "\n".join(body)
+    width = len(header)
+    known = [j for j, h in enumerate(header) if h in _KNOWN]
+    unknown = [j for j, h in enumerate(header) if h not in _KNOWN]
+    # Fast path: one C-level pass over every column (np.loadtxt skips blank
+    # lines, so the row count is checked too).
+    data: FloatArray | None = None
     try:
-        data = np.loadtxt(io.StringIO("\n".join(body)), delimiter=",", ndmin=2, dtype=np.float64)
-        if data.shape[1] == width:
-            return data
+        data = _loadtxt(text)
     except ValueError:
         pass
-    # Slow path: find the first offending line and say what is wrong with it.
+    if data is not None and data.shape == (len(body), width):
+        _check_finite(data[:, known], [header[j] for j in known], source, first_line)
+        return {
+            header[j]: data[:, j]
+            for j in range(width)
+            if j in known or bool(np.isfinite(data[:, j]).all())
+        }
+    # Slow path: field counts per line, then the known columns strictly, then
+    # each unknown column on its own.
+    _check_widths(body, width, source, first_line)
+    try:
+        strict = _loadtxt(text, usecols=known)
+    except ValueError:
+        _explain(body, header, known, source, first_line)
+    if strict.shape[0] != len(body):  # pragma: no cover  (blank lines fail the width check)
+        raise RunFileError(f"{source}: unreadable data rows")
+    _check_finite(strict, [header[j] for j in known], source, first_line)
+    col = {header[j]: strict[:, k] for k, j in enumerate(known)}
+    for j in unknown:
+        try:
+            values = _loadtxt(text, usecols=[j])[:, 0]
+        except ValueError:
+            continue
+        if len(values) == len(body) and bool(np.isfinite(values).all()):
+            col[header[j]] = values
+    return col
+
+
+def _check_finite(data: FloatArray, names: list[str], source: str, first_line: int) -> None:
+    bad = ~np.isfinite(data)
+    if bad.any():
+        row, k = map(int, np.argwhere(bad)[0])
+        raise RunFileError(
+            f"{source}: line {first_line + row}: column {names[k]!r} is not a finite number"
+        )
+
+
+def _check_widths(body: list[str], width: int, source: str, first_line: int) -> None:
+    commas = width - 1
+    for k, line in enumerate(body):
+        if not line.strip():
+            raise RunFileError(f"{source}: line {first_line + k}: blank line inside the data")
+        if line.count(",") != commas:
+            raise RunFileError(
+                f"{source}: line {first_line + k}: expected {width} fields, "
+                f"got {line.count(',') + 1}"
+            )
+
+
+def _is_number(text: str) -> bool:
+    """What np.loadtxt accepts: float() syntax without underscores or non-ASCII digits."""
+    if "_" in text or not text.isascii():
+        return False
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _explain(
+    body: list[str], header: list[str], known: list[int], source: str, first_line: int
+) -> NoReturn:
+    """Raise a RunFileError for the first known field that is blank or not a number."""
     for k, line in enumerate(body):
         fields = line.split(",")
-        where = f"{source}: line {first_line + k}"
-        if len(fields) != width:
-            raise RunFileError(f"{where}: expected {width} fields, got {len(fields)}")
-        for f in fields:
-            try:
-                float(f)
-            except ValueError:
-                raise RunFileError(f"{where}: {f.strip()!r} is not a number") from None
+        for j in known:
+            field_text = fields[j].strip()
+            where = f"{source}: line {first_line + k}: column {header[j]!r}"
+            if not field_text:
+                raise RunFileError(f"{where} is blank")
+            if not _is_number(field_text):
+                raise RunFileError(f"{where}: {field_text!r} is not a number")
     raise RunFileError(f"{source}: unreadable data rows")  # pragma: no cover
-
