@@ -14,7 +14,9 @@ the hot path); element 0 is the message kind, element 1 the schema version::
 
 * ``seq``: uint64, per key expression, 0 for the publisher's first message and +1
   for each message after it (a restart of the publisher starts again at 0).
-* ``sensor_time_s``: the gyro's own time stamp of the frame, s (float64).
+* ``sensor_time_s``: the CAN frame's time stamp as python-can delivers it, s
+  (float64): the sender's stamp over socketcand (the simulator stamps sensor
+  time), the host kernel's receive time on socketcan.
 * ``receive_time_s``: wall clock (``time.time()``, s since the Unix epoch, float64)
   when the daemon received the CAN frame; subscribers compute latency against it.
 * rates and biases in °/s, temperatures in °C, all float64; ``rate = raw − bias``.
@@ -84,7 +86,8 @@ class StatusFlags(enum.IntFlag):
     COUNTER_JUMP = 1 << 5
     #: bit 6: the estimator has not converged yet (warm-up after start or re-init).
     ESTIMATOR_WARMUP = 1 << 6
-    #: bit 7: a raw rate reached the sensor's full scale (saturated axis).
+    #: bit 7: reserved for a raw rate at the sensor's full scale; never set by
+    #: this version of the daemon.
     RATE_SATURATED = 1 << 7
 
 
