@@ -1,9 +1,13 @@
 """Time ``diagnose`` on seven 2-hour runs at 10 Hz; print one JSON line.
 
-    .venv/bin/python bench/diagnose_speed.py [--no-simulation]
+    .venv/bin/python bench/diagnose_speed.py [--no-simulation] [--candump]
 
 Runs come from the independent generator (gyrotherm.analysis.synth_runs, one
-effect injected); generation is not timed, reading CSV is not included.
+effect injected); generation is not timed, reading CSV is not included. With
+``--candump`` the runs are first written as ``candump -l`` logs of the
+shipped DBC's frames (not timed), and reading them back
+(:func:`gyrotherm.codecs._candump_run.run_from_candump`: parse, decode, build
+the run) is timed separately and included in ``seconds``.
 """
 
 from __future__ import annotations
@@ -12,24 +16,49 @@ import json
 import os
 import platform
 import sys
+import tempfile
 import time
+from pathlib import Path
 
 from gyrotherm.analysis import SynthConfig, diagnose, synth_runs
+from gyrotherm.codecs import FrameEncoder, Run, write_candump
+from gyrotherm.codecs._candump_run import run_from_candump
+from gyrotherm.sim import frames_from_run
+
+
+def _via_candump(runs: list[Run], folder: Path) -> tuple[list[Run], float, int]:
+    paths = []
+    frames = 0
+    for run in runs:
+        path = folder / f"{run.name}.log"
+        frames += write_candump(path, frames_from_run(run, encoder=FrameEncoder()))
+        paths.append(path)
+    start = time.perf_counter()
+    out = [run_from_candump(p) for p in paths]
+    return out, time.perf_counter() - start, frames
 
 
 def main() -> None:
     simulate = "--no-simulation" not in sys.argv
+    candump = "--candump" in sys.argv
     runs, _ = synth_runs(SynthConfig(duration_s=7200.0, rate_hz=10.0,
                                      effects={"hysteresis": {}}), n_runs=7, seed=11)
-    start = time.perf_counter()
-    result = diagnose(runs, simulate=simulate)
-    elapsed = time.perf_counter() - start
+    extra: dict[str, float | int] = {}
+    read_s = 0.0
+    with tempfile.TemporaryDirectory() as tmp:
+        if candump:
+            runs, read_s, frames = _via_candump(runs, Path(tmp))
+            extra = {"candump_frames": frames, "candump_read_seconds": round(read_s, 2)}
+        start = time.perf_counter()
+        result = diagnose(runs, simulate=simulate)
+        elapsed = time.perf_counter() - start + read_s
     print(json.dumps({
-        "benchmark": "diagnose_7x2h_10hz",
+        "benchmark": "diagnose_7x2h_10hz" + ("_candump" if candump else ""),
         "runs": len(runs),
         "rows": sum(len(r) for r in runs),
         "simulation": simulate,
         "seconds": round(elapsed, 2),
+        **extra,
         "found": [f.effect for f in result.findings],
         "cpus": os.cpu_count(),
         "python": platform.python_version(),

@@ -11,7 +11,7 @@ from scipy.signal import lfilter
 from gyrotherm.analysis import add_bias, allan_deviation, direction_state, lowpass
 from gyrotherm.analysis._effects import ExtendedModel, design, effect_params
 from gyrotherm.analysis._prep import Prepared, characterise
-from gyrotherm.analysis._select import Selector, integrated_time
+from gyrotherm.analysis._score import Selector, integrated_time
 from gyrotherm.analysis._stats import gauss_markov_fit, heating_minus_cooling
 from gyrotherm.analysis._synth import SynthConfig, synth_run
 from gyrotherm.codecs import Run
@@ -43,8 +43,8 @@ def test_design_columns_and_physical_parameters() -> None:
     temp = 20.0 + 0.1 * t
     dt = np.full_like(t, 2.0)
     sc = Scaling(t_ref_c=25.0, t_scale_c=5.0, dt_scale_c=4.0)
-    names, a = design(t, temp, dt, None, sc, {"cubic": 0.0, "gradient_quadratic": 0.0,
-                                               "drift": 0.0, "warmup": 50.0})
+    names, a = design(t, temp, dt, sc, {"cubic": 0.0, "gradient_quadratic": 0.0,
+                                     "drift": 0.0, "warmup": 50.0})
     assert names == ("T^2", "T", "dT", "T*dT", "warmup", "cubic", "gradient_quadratic", "drift")
     x = (temp - 25.0) / 5.0
     assert np.allclose(a[:, 0], x**2) and np.allclose(a[:, 5], x**3)
@@ -54,6 +54,57 @@ def test_design_columns_and_physical_parameters() -> None:
     assert effect_params("cubic", 125.0, sc, 0.0) == {"coefficient_dps_per_c3": 1.0}
     assert effect_params("gradient_quadratic", 16.0, sc, 0.0) == {"coefficient_dps_per_c2": 1.0}
     assert effect_params("warmup", 0.1, sc, 300.0) == {"amplitude_dps": 0.1, "tau_s": 300.0}
+
+
+def test_hysteresis_column_has_dead_band_and_saturation_of_one_width() -> None:
+    # T: 20 → 24 (rise 4 °C), then back to 20, 1 °C per sample; width 1 °C
+    temp = np.array([20.0, 21, 22, 23, 24, 23, 22, 21, 20])
+    sc = Scaling(t_ref_c=22.0, t_scale_c=2.0, dt_scale_c=1.0)
+    names, a = design(np.arange(9.0), temp, np.zeros(9), sc, {"hysteresis": 1.0})
+    assert names[-1] == "hysteresis"
+    h = a[:, -1]
+    # the direction flips to +1 once T has risen more than 1 °C (at 22 °C), then h
+    # saturates over 1 °C of travel counted from the flip sample's step
+    up = [1 - math.exp(-d) for d in (1.0, 2.0, 3.0)]
+    assert np.allclose(h[:2], 0.0) and np.allclose(h[2:5], up)
+    # 23 °C: inside the dead band the state stays +1 and the travel (now 4 °C) still
+    # pushes h towards it; falling: −1 once T is more than 1 °C below its high (22 °C)
+    h0 = 1 - math.exp(-4.0)
+    assert h[5] == pytest.approx(h0)
+    down = [-1 + (h0 + 1) * math.exp(-d) for d in (1.0, 2.0, 3.0)]
+    assert np.allclose(h[6:], down)
+
+
+def test_hysteresis_follows_the_lagged_temperature_with_thermal_lag() -> None:
+    t = np.arange(0.0, 400.0)
+    temp = np.where(t < 100, 20.0, np.where(t < 200, 20.0 + 0.1 * (t - 100), 30.0))
+    sc = Scaling(t_ref_c=25.0, t_scale_c=5.0, dt_scale_c=1.0)
+    _, a = design(t, temp, np.zeros_like(t), sc, {"thermal_lag": 50.0, "hysteresis": 0.5})
+    lagged = lowpass(temp, 50.0)
+    assert np.allclose(a[:, 1], (lagged - 25.0) / 5.0)  # T column: the lagged temperature
+    first = int(np.argmax(a[:, -1] != 0.0))
+    # the flip: when the *lagged* temperature has risen more than 0.5 °C
+    assert first == int(np.argmax(lagged - 20.0 > 0.5))
+    assert first > int(np.argmax(temp - 20.0 > 0.5))
+
+
+def test_joint_search_finds_both_time_constants() -> None:
+    # lag 300 s and warm-up 400 s together; a joint grid + Nelder–Mead recovers both
+    rng = np.random.default_rng(7)
+    sc = Scaling(25.0, 10.0, 5.0)
+    truth = {"thermal_lag": 300.0, "warmup": 400.0}
+    runs = []
+    for i in range(3):
+        t = np.arange(4000.0)
+        temp = 25 + 10 * np.sin(t / (250 + 60 * i)) + i
+        _, x = design(t, temp, np.gradient(temp) * 100, sc, truth)
+        y = x @ np.array([0.02, 0.1, 0.05, 0.0, 0.08]) + 0.3 * i + rng.normal(0, 0.002, len(t))
+        runs.append(_prepared(f"r{i}", t, temp, y))
+    sel = Selector(runs, sc)
+    ev = sel.evaluate({"thermal_lag": 20.0, "warmup": 20.0}, search=["thermal_lag", "warmup"])
+    assert ev.effects["thermal_lag"] == pytest.approx(300.0, rel=0.03)
+    assert ev.effects["warmup"] == pytest.approx(400.0, rel=0.03)
+    assert sel.model(ev).params()["warmup"]["amplitude_dps"] == pytest.approx(0.08, rel=0.05)
 
 
 def test_allan_deviation_of_white_noise_falls_as_one_over_root_tau() -> None:
@@ -115,15 +166,15 @@ def test_leave_one_out_matches_explicit_dummy_regression() -> None:
         blocks = []
         ys = []
         for k, j in enumerate(train):
-            _, x = design(runs[j].time_s, runs[j].temperature_c, runs[j].delta_t_c,
-                          runs[j].direction, sc, {"warmup": 200.0})
+            _, x = design(runs[j].time_s, runs[j].temperature_c, runs[j].delta_t_c, sc,
+                          {"warmup": 200.0})
             dummies = np.zeros((len(x), len(train)))
             dummies[:, k] = 1.0
             blocks.append(np.hstack([x, dummies]))
             ys.append(runs[j].rate_dps)
         coef, *_ = np.linalg.lstsq(np.vstack(blocks), np.concatenate(ys), rcond=None)
-        _, xr = design(runs[r].time_s, runs[r].temperature_c, runs[r].delta_t_c,
-                       runs[r].direction, sc, {"warmup": 200.0})
+        _, xr = design(runs[r].time_s, runs[r].temperature_c, runs[r].delta_t_c, sc,
+                       {"warmup": 200.0})
         e = runs[r].rate_dps - xr @ coef[: xr.shape[1]]
         assert ev.heldout_sse[r] == pytest.approx(float(np.sum((e - e.mean()) ** 2)), rel=1e-6)
     assert ev.effects["warmup"] == 200.0

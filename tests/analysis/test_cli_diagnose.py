@@ -50,10 +50,11 @@ def test_cli_errors_name_the_problem(tmp_path: Path) -> None:
     args = _parser().parse_args(["diagnose", one, "--json", str(tmp_path / "o.json")])
     with pytest.raises(CalibrationError, match="at least 2 runs"):
         args.func(args)
-    log = tmp_path / "bus.log"
+    log = tmp_path / "bus.csv"  # a candump log, whatever its name says
     log.write_text("(1.000000) can0 123#00\n")
     args = _parser().parse_args(["diagnose", one, str(log), "--json", "-"])
-    with pytest.raises(RunFileError, match="candump"):
+    with pytest.raises(RunFileError, match=r"bus\.csv: candump log has no valid rate frame "
+                       r".*unknown_id: 1"):
         args.func(args)
     args = _parser().parse_args(["diagnose", one, one, "--json", "-", "--axis", "y"])
     with pytest.raises(RunFileError, match="share a name"):

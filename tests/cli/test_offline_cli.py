@@ -66,3 +66,9 @@ def test_paper_tables(capsys: pytest.CaptureFixture[str]) -> None:
     out = capsys.readouterr().out
     assert "Table 1" in out and "mean (eq. 12)" in out and "Table 2" in out
     assert "paper (eq.12)" in out and "t2 60 min" in out
+
+
+def test_fit_a_single_run(run_dir: Path, tmp_path: Path) -> None:
+    one = str(sorted(run_dir.glob("*.csv"))[0])
+    assert main(["-q", "fit", one, "--model", "paper", "--out", str(tmp_path / "c.json")]) == 0
+    assert (tmp_path / "c.json").exists()

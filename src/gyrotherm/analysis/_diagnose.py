@@ -37,7 +37,8 @@ from gyrotherm.analysis._prep import (
     prepare,
     with_tau,
 )
-from gyrotherm.analysis._select import Evaluation, Selection, Selector, select
+from gyrotherm.analysis._score import Evaluation, Selector
+from gyrotherm.analysis._select import Selection, select
 from gyrotherm.analysis._simulate import SimCalibration, calibrate, replay
 from gyrotherm.analysis._stats import gauss_markov_fit, mismatch_order, residual_statistics
 from gyrotherm.codecs import AXES, Run

@@ -9,14 +9,21 @@ searched on a log grid and refined (profile likelihood).
   estimated temperature, y' = (T − y)/τ, y(0) = T(0). T_lag replaces T in every
   temperature term (ΔT stays). To first order T_lag ≈ T − τ·dT/dt, which the
   ΔT terms absorb; what remains is the lag's shape at ramp corners and holds.
-* ``hysteresis`` (``amplitude_dps``, ``transition_c``): bias += A·h. The
-  direction d of the last move (+1 heating, −1 cooling, 0 before the first) is
-  a play operator of width 0.25 °C on T (:func:`direction_state`); after each
-  flip, h saturates towards d with the temperature travelled since:
-  h = d + (h₀ − d)·exp(−D/w), D = Σ|ΔT| since the flip, w = ``transition_c``
-  (0 = an abrupt switch; searched on a grid). Noise in holds only pushes h
-  further towards d, so the memory persists through holds. A is half the
-  separation of the saturated branches, positive when heating lies above.
+* ``hysteresis`` (``amplitude_dps``, ``transition_c``): bias += A·h, a
+  rate-independent memory of the direction of the last move of the
+  *structure* temperature T_s (T_lag when the model has ``thermal_lag``: the
+  hysteresis is a property of the MEMS structure and follows its temperature;
+  else T). One length scale w = ``transition_c`` (°C, searched on a log grid)
+  sets both the dead band and the saturation: the direction d (+1 heating, −1
+  cooling, 0 before the first move) is a play operator of width w on T_s
+  (:func:`direction_state`: it flips once T_s has moved w from its last
+  extreme), and after each flip h saturates towards d with the temperature
+  travelled since, h = d + (h₀ − d)·exp(−D/w), D = Σ|ΔT_s| since the flip.
+  Noise in holds only pushes h further towards d, so the memory persists
+  through holds. A is half the separation of the saturated branches, positive
+  when heating lies above. (A fixed narrow band with w only shaping the
+  saturation cannot delay the switch; a lag then served as the hysteresis'
+  timing knob and was reported as a spurious ``thermal_lag``.)
 * ``warmup`` (``amplitude_dps``, ``tau_s``): bias += A·exp(−t/τ), t = time since
   power-on, independent of temperature.
 * ``cubic`` (``coefficient_dps_per_c3``): bias += c·(T − T_ref)³; c is also the
@@ -32,7 +39,7 @@ die temperature and gradient.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, MutableMapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -48,17 +55,22 @@ FloatArray = NDArray[np.float64]
 EFFECTS: tuple[str, ...] = (
     "thermal_lag", "hysteresis", "warmup", "cubic", "gradient_quadratic", "drift",
 )
-#: Log grids of the nonlinear parameter (time constant, s) of the effects that have one.
 TAU_GRIDS: Mapping[str, tuple[float, ...]] = {
     "thermal_lag": tuple(float(v) for v in np.geomspace(10.0, 2000.0, 25)),
     "warmup": tuple(float(v) for v in np.geomspace(20.0, 3600.0, 24)),
-    "hysteresis": (0.0, *(float(v) for v in np.geomspace(0.1, 10.0, 13))),
+    "hysteresis": tuple(float(v) for v in np.geomspace(0.1, 10.0, 13)),
 }
+"""Log grids of the nonlinear parameter of the effects that have one (s; °C for
+``hysteresis``)."""
 #: Name of each effect's searched parameter in the report.
 GRID_PARAM = {"thermal_lag": "tau_s", "warmup": "tau_s", "hysteresis": "transition_c"}
 BASE_COLUMNS = ("T^2", "T", "dT", "T*dT")
-#: Width of the play operator giving the direction of the last move, °C.
+#: Width of the play operator giving the direction of the last move for the residual
+#: statistics and plots (the hysteresis regressor uses its own width), °C.
 DIRECTION_WIDTH_C = 0.25
+#: Smallest hysteresis transition (dead band and saturation), °C.
+MIN_TRANSITION_C = 0.02
+_PLAY_CHUNK = 512
 DESCRIPTIONS: Mapping[str, str] = {
     "thermal_lag": "the bias follows a first-order lag of the sensed temperature",
     "hysteresis": "heating and cooling branches differ at equal T, through holds",
@@ -82,21 +94,43 @@ def direction_state(temperature_c: FloatArray, width_c: float, *, every: int = 1
     """Play operator: +1 after T rose ``width_c`` above its last low, −1 after it fell
     ``width_c`` below its last high, 0 before the first such move.
 
+    The low (high) is the minimum (maximum) since the last flip to −1 (+1), or
+    since the start while the state is 0; a flip is checked after the sample
+    has updated them, and falling wins a tie. Vectorised by chunks: each
+    flip costs at most one chunk of running extrema.
+
     ``every`` > 1 runs the operator on every ``every``-th sample and holds the
-    state in between (faster; switch times shift by less than ``every`` samples).
+    state in between (switch times shift by less than ``every`` samples).
     """
-    values = temperature_c[::every] if every > 1 else temperature_c
-    out = np.zeros(len(values))
+    values = np.asarray(temperature_c[::every] if every > 1 else temperature_c,
+                        dtype=np.float64)
+    n = len(values)
+    out = np.zeros(n)
+    if n == 0:
+        return out
     state = 0.0
-    lo = hi = float(values[0]) if len(values) else 0.0
-    for i, v in enumerate(values.tolist()):
-        hi = max(hi, v)
-        lo = min(lo, v)
-        if state >= 0.0 and hi - v > width_c:
-            state, lo = -1.0, v
-        elif state <= 0.0 and v - lo > width_c:
-            state, hi = 1.0, v
-        out[i] = state
+    hi = lo = float(values[0])
+    i = 0
+    while i < n:
+        seg = values[i: i + _PLAY_CHUNK]
+        hi_run = np.maximum(np.maximum.accumulate(seg), hi)
+        lo_run = np.minimum(np.minimum.accumulate(seg), lo)
+        down = hi_run - seg > width_c if state >= 0.0 else np.zeros(len(seg), dtype=bool)
+        up = seg - lo_run > width_c if state <= 0.0 else np.zeros(len(seg), dtype=bool)
+        hit = np.flatnonzero(down | up)
+        if len(hit) == 0:
+            out[i: i + len(seg)] = state
+            hi, lo = float(hi_run[-1]), float(lo_run[-1])
+            i += len(seg)
+            continue
+        k = int(hit[0])
+        out[i: i + k] = state
+        if down[k]:
+            state, lo, hi = -1.0, float(seg[k]), float(hi_run[k])
+        else:
+            state, hi, lo = 1.0, float(seg[k]), float(lo_run[k])
+        out[i + k] = state
+        i += k + 1
     if every > 1:
         out = np.repeat(out, every)[: len(temperature_c)]
     return out
@@ -123,55 +157,101 @@ def hysteresis_state(
     return h
 
 
+ColumnCache = MutableMapping[tuple[str, float, float], FloatArray]
+"""Columns of one series by (kind, lag τ or 0, parameter), for :func:`design`."""
+
+
 def design(
     time_s: FloatArray,
     temperature_c: FloatArray,
     delta_t_c: FloatArray,
-    direction: FloatArray | None,
     scaling: Scaling,
     effects: Mapping[str, float],
     *,
     step_s: float = 1.0,
-    direction_width_c: float = DIRECTION_WIDTH_C,
+    cache: ColumnCache | None = None,
+    centred: bool = False,
+    append: FloatArray | None = None,
+    hysteresis_follows_lag: bool = True,
 ) -> tuple[tuple[str, ...], FloatArray]:
     """Column names and design matrix of the paper model extended by ``effects``.
 
-    ``effects`` maps effect name → its time constant (s), or 0.0 for effects
-    without one. No intercept column: offsets are per run. ``direction`` is
-    the play-operator state of ``temperature_c`` (computed when None); the
-    hysteresis regressor follows the sensed temperature even with
-    ``thermal_lag`` (its saturation width absorbs a lag), so that the lag
-    cannot act as a timing knob of the hysteresis.
+    ``effects`` maps effect name → its nonlinear parameter (time constant, s;
+    ``transition_c`` for hysteresis), or 0.0 for effects without one. No
+    intercept column: offsets are per run. With ``thermal_lag``, the lagged
+    temperature replaces T in the temperature terms and drives the hysteresis.
+    ``cache`` (one per series, with fixed ``scaling`` and ``step_s``) keeps
+    columns for reuse across calls with other effect sets. ``centred``: every
+    column minus its mean. ``append``: a last column (not named) copied in as is.
+    ``hysteresis_follows_lag=False`` drives the hysteresis by T even with a lag
+    (to test whether a lag earns its place by more than timing the hysteresis).
     """
     unknown = set(effects) - set(EFFECTS)
     if unknown:
         raise CalibrationError(f"unknown effects {sorted(unknown)}; known: {', '.join(EFFECTS)}")
-    temp = temperature_c
-    if "thermal_lag" in effects:
-        temp = lowpass(temperature_c, effects["thermal_lag"], step_s=step_s)
-    x, g = scaling.centre(temp, delta_t_c)
+    memo: ColumnCache = cache if cache is not None else {}
+    lag = round(effects["thermal_lag"], 6) if "thermal_lag" in effects else 0.0
+    hyst_lag = lag if hysteresis_follows_lag else 0.0
+
+    def column(kind: str, param: float, make: Callable[[], FloatArray],
+               at: float | None = None) -> FloatArray:
+        """Cached column; ``at``: the lag it depends on (None: none)."""
+        key = (kind, round(at, 6) if at is not None else -1.0, round(param, 6))
+        if key not in memo:
+            memo[key] = make()
+        if not centred or kind == "temp":
+            return memo[key]
+        ckey = ("c " + kind, *key[1:])
+        if ckey not in memo:
+            raw = memo[key]
+            memo[ckey] = raw - raw.mean(axis=-1, keepdims=True)
+        return memo[ckey]
+
+    def lagged(tau: float) -> Callable[[], FloatArray]:
+        return lambda: lowpass(temperature_c, tau, step_s=step_s) if tau else temperature_c
+
+    def base() -> FloatArray:  # rows: x², x, g, x·g, x³, g²
+        x, g = scaling.centre(column("temp", 0.0, lagged(lag), lag), delta_t_c)
+        return np.array([x * x, x, g, x * g, x**3, g * g])
+
+    def hysteresis(width: float) -> Callable[[], FloatArray]:
+        def make() -> FloatArray:
+            temp = column("temp", 0.0, lagged(hyst_lag), hyst_lag)
+            return hysteresis_state(temp, direction_state(temp, width), width)
+        return make
+
+    def warmup(tau: float) -> Callable[[], FloatArray]:
+        return lambda: np.asarray(np.exp(-time_s / tau), dtype=np.float64)
+
+    def drift() -> FloatArray:
+        return np.asarray(time_s / 3600.0, dtype=np.float64)
+
+    block = column("base", 0.0, base, lag)
     names: list[str] = list(BASE_COLUMNS)
-    cols = [x * x, x, g, x * g]
+    rows: list[FloatArray] = [block[0], block[1], block[2], block[3]]
     for name in EFFECTS:
         if name not in effects:
             continue
         if name == "hysteresis":
-            if direction is None:
-                every = max(1, round(10.0 / step_s))
-                direction = direction_state(temperature_c, direction_width_c, every=every)
-            cols.append(hysteresis_state(temperature_c, direction, effects[name]))
+            width = max(effects[name], MIN_TRANSITION_C)
+            rows.append(column("hysteresis", width, hysteresis(width), hyst_lag))
         elif name == "warmup":
-            cols.append(np.exp(-time_s / effects[name]))
+            rows.append(column("warmup", effects[name], warmup(effects[name])))
         elif name == "cubic":
-            cols.append(x**3)
+            rows.append(block[4])
         elif name == "gradient_quadratic":
-            cols.append(g * g)
+            rows.append(block[5])
         elif name == "drift":
-            cols.append(time_s / 3600.0)
+            rows.append(column("drift", 0.0, drift))
         else:
             continue
         names.append(name)
-    return tuple(names), np.column_stack(cols)
+    if append is not None:
+        rows.append(append)
+    out = np.empty((len(rows), len(time_s)))
+    for i, row in enumerate(rows):
+        out[i] = row
+    return tuple(names), out.T
 
 
 def effect_params(
@@ -203,7 +283,6 @@ class ExtendedModel:
     coefficients: tuple[float, ...]
     intercept_dps: float
     offsets_dps: Mapping[str, float] = field(default_factory=dict)
-    direction_width_c: float = DIRECTION_WIDTH_C
 
     @property
     def name(self) -> str:
@@ -235,14 +314,12 @@ class ExtendedModel:
         temperature_c: FloatArray,
         delta_t_c: FloatArray,
         *,
-        direction: FloatArray | None = None,
         step_s: float | None = None,
     ) -> FloatArray:
         """Bias (°/s) along a uniformly sampled series (offsets: the common intercept)."""
         step = step_s if step_s is not None else (
             float(np.median(np.diff(time_s))) if len(time_s) > 1 else 1.0)
-        _, a = design(time_s, temperature_c, delta_t_c, direction, self.scaling,
-                      self.effects, step_s=step, direction_width_c=self.direction_width_c)
+        _, a = design(time_s, temperature_c, delta_t_c, self.scaling, self.effects, step_s=step)
         return np.asarray(a @ np.asarray(self.coefficients) + self.intercept_dps)
 
 

@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gyrotherm.analysis._prep import Prepared
-from gyrotherm.analysis._select import integrated_time
+from gyrotherm.analysis._score import integrated_time
 
 FloatArray = NDArray[np.float64]
 ALLAN_TAUS_S = (1, 10, 100, 1000)

@@ -7,6 +7,7 @@ import sys
 from collections.abc import Callable, Sequence
 
 from gyrotherm.codecs import Run, read_run
+from gyrotherm.codecs._candump_run import is_candump_log, run_from_candump
 from gyrotherm.estimators import EstimatorConfig
 
 
@@ -22,11 +23,19 @@ def progress(label: str, *, quiet: bool = False) -> Callable[[int, int], None]:
     return report
 
 
+def load_run(path: str) -> Run:
+    """A run file (CSV version 1) or a ``candump -l`` log of the gyro's frames (shipped
+    DBC), told apart by content: a log's first non-empty line is
+    ``(<seconds>) <iface> <id>#<data>``."""
+    return run_from_candump(path) if is_candump_log(path) else read_run(path)
+
+
 def load_runs(paths: Sequence[str], *, quiet: bool = False) -> list[Run]:
+    """:func:`load_run` of every path, with a progress line."""
     report = progress("reading runs", quiet=quiet)
     runs = []
     for i, p in enumerate(paths):
-        runs.append(read_run(p))
+        runs.append(load_run(p))
         report(i + 1, len(paths))
     return runs
 

@@ -11,37 +11,41 @@ from pathlib import Path
 
 from gyrotherm._errors import ConfigError, RunFileError
 from gyrotherm.analysis import diagnose, write_report
-from gyrotherm.cli._common import progress
-from gyrotherm.codecs import Run, read_run
-
-
-def _looks_like_candump(path: Path) -> bool:
-    try:
-        with path.open("rb") as fh:
-            head = fh.read(64).lstrip()
-    except OSError:
-        return False
-    return head.startswith(b"(") or path.suffix == ".log"
+from gyrotherm.cli._common import load_runs
+from gyrotherm.codecs import Run
 
 
 def load(paths: Sequence[str], *, quiet: bool = False) -> list[Run]:
-    """Read run files (CSV version 1); a candump log is named as such in the error."""
-    report = progress("reading runs", quiet=quiet)
-    runs = []
-    for i, name in enumerate(paths):
-        path = Path(name)
-        if _looks_like_candump(path):
-            raise RunFileError(
-                f"{path}: looks like a candump log; this gyrotherm diagnoses run files "
-                "(CSV version 1): convert the log to a run file first"
-            )
-        runs.append(read_run(path))
-        report(i + 1, len(paths))
+    """Run files (CSV version 1) and ``candump -l`` logs (told apart by content,
+    see :func:`gyrotherm.cli._common.load_run`); run names must be unique."""
+    runs = load_runs(paths, quiet=quiet)
     names = [r.name for r in runs]
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
-        raise RunFileError(f"runs share a name {dupes}: give each run file its own '# name:'")
+        raise RunFileError(
+            f"runs share a name {dupes}: give each run file its own '# name:' "
+            "(a candump log is named after its file)")
     return runs
+
+
+def candump_notes(runs: Sequence[Run]) -> list[str]:
+    """One line per run read from a candump log that lost frames or rows (from the
+    counts :func:`~gyrotherm.codecs._candump_run.run_from_candump` keeps in metadata)."""
+    notes = []
+    for r in runs:
+        md = r.metadata
+        if md.get("source_format") != "candump":
+            continue
+        lost = {k.removeprefix("frames_rejected_"): int(v) for k, v in md.items()
+                if k.startswith("frames_rejected_") and int(v)}
+        for key in ("counter_jumps", "rows_before_first_temperature"):
+            if int(md.get(key, "0")):
+                lost[key] = int(md[key])
+        if lost:
+            listing = ", ".join(f"{k}: {v}" for k, v in lost.items())
+            notes.append(f"{r.name}: candump log {r.source} ({md.get('frames')} frames): "
+                         f"{listing}")
+    return notes
 
 
 def cmd_diagnose(args: argparse.Namespace) -> int:
@@ -58,6 +62,10 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     result = diagnose(runs, axis=args.axis, margin=args.margin, seed=args.seed,
                       simulate=not args.no_simulation, progress=say)
     data = result.to_dict()
+    lost = candump_notes(runs)
+    for line in lost:
+        say(line)
+    data["notes"] = [*data["notes"], *lost]
     data["elapsed_s"] = round(time.perf_counter() - start, 3)
     out = Path(args.json)
     if str(out) == "-":
@@ -79,7 +87,9 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("runs", nargs="+", help="run files (CSV version 1), ≥ 2, one device")
+    p.add_argument("runs", nargs="+",
+                   help="run files (CSV version 1) or candump -l logs (shipped DBC), ≥ 2, "
+                   "one device")
     p.add_argument("--json", required=True,
                    help="write the diagnosis (schema gyrotherm.diagnosis/1) here; '-' = stdout")
     p.add_argument("--report", metavar="DIR", help="also write report.md and PNG plots to DIR")

@@ -61,7 +61,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     per_run = fit_per_run(feats, args.model, estimator=est, scaling=scaling) if len(feats) > 1 \
         else []
     for axis in cal.axes:
-        rows = [(f.name, c) for f, c in zip(feats, per_run, strict=True)]
+        rows = [(f.name, c) for f, c in zip(feats, per_run, strict=False)]
         rows.append((f"{args.method}", cal))
         print(coefficient_table(rows, axis))
         print()
@@ -150,7 +150,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     _stream_cli.register(sim_sub)
 
     f = sub.add_parser("fit", help="fit a bias model to run files and write a calibration")
-    f.add_argument("runs", nargs="+", help="run files (CSV version 1)")
+    f.add_argument("runs", nargs="+", help="run files (CSV version 1) or candump logs")
     f.add_argument("--model", choices=sorted(MODELS), default="paper")
     f.add_argument("--method", choices=METHODS, default="pooled")
     f.add_argument("--out", required=True, help="calibration file to write (JSON)")
@@ -161,7 +161,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
     e = sub.add_parser("evaluate", help="score a calibration on run files (Table 2 style)")
     e.add_argument("calibration", help="calibration file (JSON)")
-    e.add_argument("runs", nargs="+", help="run files (CSV version 1)")
+    e.add_argument("runs", nargs="+", help="run files (CSV version 1) or candump logs")
     e.add_argument("--json", action="store_true", help="print JSON instead of a table")
     e.set_defaults(func=cmd_evaluate)
 

@@ -17,6 +17,7 @@ from gyrotherm.codecs._candump import (
     read_candump,
     write_candump,
 )
+from gyrotherm.codecs._candump_run import is_candump_log, run_from_candump
 from gyrotherm.codecs._canenc import FrameEncoder, RateLike, TemperatureLike
 from gyrotherm.codecs._canmap import DEFAULT_DBC_PATH, SignalMap
 from gyrotherm.codecs._crc import (
@@ -93,11 +94,13 @@ __all__ = [
     "encode_state",
     "format_candump_line",
     "format_run",
+    "is_candump_log",
     "iter_candump",
     "parse_candump_line",
     "parse_run",
     "read_candump",
     "read_run",
+    "run_from_candump",
     "write_candump",
     "write_run",
 ]
