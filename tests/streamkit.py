@@ -27,7 +27,7 @@ from typing import TypeVar
 import can
 import zenoh
 
-from gyrotherm.codecs import FrameEncoder, RateSample, Run, TemperatureSample
+from gyrotherm.codecs import FrameEncoder, RateSample, Run, SignalMap, TemperatureSample
 
 
 def run_frames(run: Run, encoder: FrameEncoder, *, period_s: float = 0.0) -> Iterator[can.Message]:
@@ -172,3 +172,25 @@ def open_ephemeral(config: zenoh.Config, *, timeout_s: float = 10.0) -> tuple[ze
         session.close()
         raise
     return session, found[0]
+
+
+#: A user's own gyro (tests of DBC-driven code): big-endian 12/16-bit rates in an
+#: extended-id frame, an IEEE-float temperature, no counter and no CRC.
+USER_DBC = """\
+VERSION ""
+NS_ :
+BS_:
+BU_: Imu Host
+BO_ 2566852609 ImuRates: 6 Imu
+ SG_ WX : 7|12@0- (0.05,0) [-100|100] "deg/s" Host
+ SG_ WY : 11|12@0- (0.05,0) [-100|100] "deg/s" Host
+ SG_ WZ : 31|16@0- (0.01,2) [-300|300] "deg/s" Host
+BO_ 928 ImuTemp: 4 Imu
+ SG_ TDie : 0|32@1- (1,0) [-40|125] "degC" Host
+SIG_VALTYPE_ 928 TDie : 1;
+"""
+USER_SIGNAL_MAP = SignalMap(
+    rate_message="ImuRates", rate_x_signal="WX", rate_y_signal="WY", rate_z_signal="WZ",
+    temperature_message="ImuTemp", temperature_signal="TDie",
+)
+

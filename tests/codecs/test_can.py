@@ -29,6 +29,7 @@ from gyrotherm.codecs._can import (
 from gyrotherm.codecs._canenc import FrameEncoder
 from gyrotherm.codecs._canmap import DEFAULT_DBC_PATH, SignalMap
 from gyrotherm.codecs._crc import CRC8_AUTOSAR, CRC8_SAE_J1850, CRC_ALGORITHMS, crc8_algorithm
+from streamkit import USER_DBC, USER_SIGNAL_MAP
 
 SETTINGS = settings(max_examples=100, derandomize=True, database=None, deadline=None)
 RATE_ID, TEMP_ID = 0x120, 0x121
@@ -355,23 +356,7 @@ def test_config_errors_name_file_message_and_signal(tmp_path: Path) -> None:
 
 # ---------------------------------------------------------------- a user's own DBC
 
-CUSTOM_DBC = """\
-VERSION ""
-NS_ :
-BS_:
-BU_: Imu Host
-BO_ 2566852609 ImuRates: 6 Imu
- SG_ WX : 7|12@0- (0.05,0) [-100|100] "deg/s" Host
- SG_ WY : 11|12@0- (0.05,0) [-100|100] "deg/s" Host
- SG_ WZ : 31|16@0- (0.01,2) [-300|300] "deg/s" Host
-BO_ 928 ImuTemp: 4 Imu
- SG_ TDie : 0|32@1- (1,0) [-40|125] "degC" Host
-SIG_VALTYPE_ 928 TDie : 1;
-"""
-CUSTOM_MAP = SignalMap(
-    rate_message="ImuRates", rate_x_signal="WX", rate_y_signal="WY", rate_z_signal="WZ",
-    temperature_message="ImuTemp", temperature_signal="TDie",
-)
+CUSTOM_DBC, CUSTOM_MAP = USER_DBC, USER_SIGNAL_MAP
 CUSTOM_RATE_ID = 0x18FF1001  # 2566852609 - 2**31: extended
 
 

@@ -30,7 +30,6 @@ from gyrotherm.cli._stream import register
 from gyrotherm.codecs import Run
 from gyrotherm.codecs._can import FrameDecoder, RateSample, TemperatureSample
 from gyrotherm.codecs._canenc import FrameEncoder
-from gyrotherm.codecs._canmap import SignalMap
 from gyrotherm.sim._bus import FrameSink
 from gyrotherm.sim._experiment import chamber_runs
 from gyrotherm.sim._stream import (
@@ -39,6 +38,7 @@ from gyrotherm.sim._stream import (
     frames_from_run,
     play,
 )
+from streamkit import USER_DBC, USER_SIGNAL_MAP
 
 TIMEOUT_S = 30.0
 RATE_ID, TEMP_ID = 0x120, 0x121
@@ -246,22 +246,7 @@ def test_vectorised_payloads_equal_frame_encoder_and_counters_continue() -> None
     assert FrameDecoder().decode(nxt).counter == (5 + n) % 16  # type: ignore[union-attr]
 
 
-CUSTOM_DBC = """VERSION ""
-NS_ :
-BS_:
-BU_: Imu Host
-BO_ 2566852609 ImuRates: 6 Imu
- SG_ WX : 7|12@0- (0.05,0) [-100|100] "deg/s" Host
- SG_ WY : 11|12@0- (0.05,0) [-100|100] "deg/s" Host
- SG_ WZ : 31|16@0- (0.01,2) [-300|300] "deg/s" Host
-BO_ 928 ImuTemp: 4 Imu
- SG_ TDie : 0|32@1- (1,0) [-40|125] "degC" Host
-SIG_VALTYPE_ 928 TDie : 1;
-"""
-CUSTOM_MAP = SignalMap(
-    rate_message="ImuRates", rate_x_signal="WX", rate_y_signal="WY", rate_z_signal="WZ",
-    temperature_message="ImuTemp", temperature_signal="TDie",
-)
+CUSTOM_DBC, CUSTOM_MAP = USER_DBC, USER_SIGNAL_MAP
 
 
 def test_big_endian_extended_dbc_and_float_fallback(tmp_path: Path) -> None:
