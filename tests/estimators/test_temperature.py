@@ -125,6 +125,43 @@ def test_constant_ramp_is_tracked_exactly_in_steady_state() -> None:
     assert not out.stale and not out.rejected
 
 
+def _textbook_filter(time_s: list[float], reading_c: list[float],
+                     cfg: EstimatorConfig) -> list[tuple[float, float]]:  # fmt: skip
+    """[T, dT/dt] after each reading, from the textbook equations with F and Q built
+    from every step's own dt (no filterpy, no caching, no gating)."""
+    r, q = cfg.measurement_variance_c2, cfg.process_noise_c2_per_s3
+    x = np.array([reading_c[0], 0.0])
+    p = np.diag([r, cfg.initial_rate_std_c_per_s**2])
+    out = [(float(x[0]), float(x[1]))]
+    for k in range(1, len(time_s)):
+        dt = time_s[k] - time_s[k - 1]
+        f = np.array([[1.0, dt], [0.0, 1.0]])
+        x = f @ x
+        p = f @ p @ f.T + q * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
+        gain = p[:, 0] / (p[0, 0] + r)
+        x = x + gain * (reading_c[k] - x[0])
+        p = p - np.outer(gain, p[0, :])
+        out.append((float(x[0]), float(x[1])))
+    return out
+
+
+def test_matches_textbook_filter_with_jittered_and_changing_steps() -> None:
+    """Time stamps i·0.1 s differ from step to step in their last bits (the filter
+    reuses F and Q for those), and real gaps change dt (it must rebuild them)."""
+    rng = np.random.default_rng(11)
+    steps = [0.1] * 300 + [0.35] * 20 + [0.1] * 100 + [1.28] * 30 + [0.1] * 50
+    time_s = np.concatenate([[0.0], np.cumsum(steps)])
+    time_s[1:301] = np.arange(1, 301) * 0.1  # i * 0.1: ULP-level jitter in dt
+    reading_c = 25.0 + 0.004 * time_s + rng.normal(0.0, 0.02, time_s.size)
+    assert len(set(np.diff(time_s[:301]).tolist())) > 1  # the jitter is really there
+    cfg = EstimatorConfig(gate_sigma=1000.0)  # no gating on this data
+    est = TemperatureEstimator(cfg)
+    got = [est.update(t, c) for t, c in zip(time_s.tolist(), reading_c.tolist(), strict=True)]
+    want = _textbook_filter(time_s.tolist(), reading_c.tolist(), cfg)
+    np.testing.assert_allclose([g.temperature_c for g in got], [w[0] for w in want], atol=1e-9)
+    np.testing.assert_allclose([g.rate_c_per_s for g in got], [w[1] for w in want], atol=1e-11)
+
+
 def test_spike_is_gated_and_step_reinitialises() -> None:
     cfg = EstimatorConfig(noise_c=0.02, max_consecutive_rejections=3)
     est = TemperatureEstimator(cfg)

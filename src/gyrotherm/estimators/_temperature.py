@@ -179,7 +179,11 @@ class TemperatureEstimator:
         dt = time_s - self._time_s
         if dt <= 0.0:
             return
-        if dt != self._dt:  # F and Q depend on dt only: rebuild when it changes
+        # F and Q depend on dt only: rebuild when it changes by more than 1 ppb.
+        # Sampled time stamps (i * 0.1 s) differ in the last bits from step to
+        # step; reusing F for a dt off by < 1e-9 relative moves the predicted
+        # temperature by < 1e-9 * dt * dT/dt (≈ 1e-11 °C at 0.1 °C/s, 0.1 s).
+        if not abs(dt - self._dt) <= 1e-9 * dt:  # (True while _dt is NaN)
             q = self._cfg.process_noise_c2_per_s3
             self._f = np.array([[1.0, dt], [0.0, 1.0]])
             self._q = q * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
