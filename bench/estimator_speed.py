@@ -20,7 +20,7 @@ from gyrotherm.compensation import features, fit
 from gyrotherm.estimators import EstimatorConfig, estimate_series
 from gyrotherm.sim import PAPER_HEATING_MIN, chamber_runs
 
-REPEATS = 5
+REPEATS = 7
 
 
 def _bare_filterpy(time_s: np.ndarray, temp_c: np.ndarray) -> None:
@@ -38,21 +38,23 @@ def _bare_filterpy(time_s: np.ndarray, temp_c: np.ndarray) -> None:
         kf.update(z)
 
 
-def _median_us_per_row(fn, n: int) -> float:  # type: ignore[no-untyped-def]
-    times = []
-    for _ in range(REPEATS):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times) / n * 1e6
+def _us_per_row(fn, n: int) -> float:  # type: ignore[no-untyped-def]
+    t0 = time.perf_counter()
+    fn()
+    return (time.perf_counter() - t0) / n * 1e6
 
 
 def main() -> int:
     run = chamber_runs([30], seed=1, rate_hz=10.0)[0]
     n = len(run)
     cfg = EstimatorConfig()
-    ours = _median_us_per_row(lambda: estimate_series(run.time_s, run.temperature_c, cfg), n)
-    bare = _median_us_per_row(lambda: _bare_filterpy(run.time_s, run.temperature_c), n)
+    # interleaved repeats: a change of machine speed hits both sides alike
+    ours_us, bare_us = [], []
+    for _ in range(REPEATS):
+        ours_us.append(_us_per_row(lambda: estimate_series(run.time_s, run.temperature_c, cfg), n))
+        bare_us.append(_us_per_row(lambda: _bare_filterpy(run.time_s, run.temperature_c), n))
+    ours, bare = statistics.median(ours_us), statistics.median(bare_us)
+    paired = statistics.median(o / b for o, b in zip(ours_us, bare_us, strict=True))
     runs = chamber_runs(PAPER_HEATING_MIN, seed=1, rate_hz=10.0)
     t0 = time.perf_counter()
     feats = [features(r, cfg) for r in runs]
@@ -64,6 +66,7 @@ def main() -> int:
         "estimate_series_us_per_row_median": round(ours, 2),
         "bare_filterpy_us_per_row_median": round(bare, 2),
         "ratio_vs_bare": round(ours / bare, 3),
+        "paired_ratio_median": round(paired, 3),
         "seven_runs_rows": sum(len(r) for r in runs),
         "seven_runs_features_s": round(t1 - t0, 2),
         "seven_runs_pooled_fit_s": round(t2 - t1, 3),
