@@ -20,15 +20,17 @@ from gyrotherm.codecs._wire import (
     RateMessage,
     StateMessage,
     StatusFlags,
+    encode_calibration_info,
+    encode_health,
+    encode_rate,
+    encode_state,
+)
+from gyrotherm.codecs._wire_decode import (
     decode_calibration_info,
     decode_health,
     decode_message,
     decode_rate,
     decode_state,
-    encode_calibration_info,
-    encode_health,
-    encode_rate,
-    encode_state,
 )
 
 

@@ -10,7 +10,8 @@ import pytest
 
 from gyrotherm import PublishError
 from gyrotherm.codecs import FrameDecoder, FrameEncoder, Run
-from gyrotherm.codecs._wire import StatusFlags, decode_rate, decode_state
+from gyrotherm.codecs._wire import StatusFlags
+from gyrotherm.codecs._wire_decode import decode_rate, decode_state
 from gyrotherm.compensation import Calibration, features
 from gyrotherm.daemon import Pipeline
 from streamkit import RecordingSink, run_frames

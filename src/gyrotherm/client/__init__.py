@@ -6,15 +6,15 @@ calibration queries; ``listen_main`` is the ``gyrotherm listen`` live view.
 """
 
 from gyrotherm.client._listen import listen_main
-from gyrotherm.client._subscriber import (
+from gyrotherm.client._stats import (
     LatencyStats,
     LatencyTracker,
     SequenceTracker,
     StreamStats,
-    Subscriber,
     SubscriberStats,
     percentile,
 )
+from gyrotherm.client._subscriber import Subscriber
 
 __all__ = [
     "LatencyStats",

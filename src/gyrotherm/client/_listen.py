@@ -23,7 +23,8 @@ import time
 
 from gyrotherm._errors import ConfigError
 from gyrotherm._zenoh import DEFAULT_CONNECT, open_session
-from gyrotherm.client._subscriber import LatencyStats, StreamStats, Subscriber
+from gyrotherm.client._stats import LatencyStats, StreamStats
+from gyrotherm.client._subscriber import Subscriber
 from gyrotherm.codecs._wire import HealthMessage, RateMessage, StateMessage, StatusFlags
 
 
