@@ -9,8 +9,10 @@ are in :mod:`gyrotherm.sim._socketcand_wire` (classic CAN only; CAN FD, remote
 and error frames are rejected with :class:`gyrotherm.DecodeError`); one
 connection, and the handshake settle wait (a client joins the broadcast only
 once it has read the ``< ok >`` to ``< rawmode >``), in
-:mod:`gyrotherm.sim._socketcand_client`. Every name of both stays importable
-from here.
+:mod:`gyrotherm.sim._socketcand_client`; option checks and :class:`ClientStats`
+in :mod:`gyrotherm.sim._socketcand_options`; the command line :func:`main` in
+:mod:`gyrotherm.sim._socketcand_cli`. Every name of these stays importable from
+here.
 
 Back-pressure: :meth:`SocketcandServer.send` never blocks. Each client has a
 bounded queue (``client_queue_frames``) emptied by its own writer thread; when
@@ -26,21 +28,18 @@ bound port on stdout, waits for a client, plays ``N`` :func:`demo_frame` frames.
 
 from __future__ import annotations
 
-import argparse
 import selectors
 import socket
-import sys
 import threading
 import time
 from collections import deque
-from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Self
 
 import can
 
 from gyrotherm._errors import ConfigError, DecodeError
 from gyrotherm.sim._bus import FrameSink, FrameSource
+from gyrotherm.sim._socketcand_cli import main as main
 from gyrotherm.sim._socketcand_client import _BATCH_FRAMES as _BATCH_FRAMES
 from gyrotherm.sim._socketcand_client import _JOIN_TIMEOUT_S as _JOIN_TIMEOUT_S
 from gyrotherm.sim._socketcand_client import _MAX_COMMAND_BYTES as _MAX_COMMAND_BYTES
@@ -50,27 +49,14 @@ from gyrotherm.sim._socketcand_client import _SETTLE_FALLBACK_S as _SETTLE_FALLB
 from gyrotherm.sim._socketcand_client import _SETTLE_POLL_S as _SETTLE_POLL_S
 from gyrotherm.sim._socketcand_client import _Client as _Client
 from gyrotherm.sim._socketcand_client import log as log
+from gyrotherm.sim._socketcand_options import ClientStats as ClientStats
+from gyrotherm.sim._socketcand_options import _check_endpoint as _check_endpoint
+from gyrotherm.sim._socketcand_options import _positive as _positive
 from gyrotherm.sim._socketcand_wire import _peer_unread_bytes as _peer_unread_bytes
 from gyrotherm.sim._socketcand_wire import _reject as _reject
 from gyrotherm.sim._socketcand_wire import demo_frame as demo_frame
 from gyrotherm.sim._socketcand_wire import encode_frame as encode_frame
 from gyrotherm.sim._socketcand_wire import parse_send as parse_send
-
-
-@dataclass(frozen=True)
-class ClientStats:
-    """Counters of one client connection (``peer`` is ``"host:port"``)."""
-
-    peer: str
-    connected: bool
-    frames_sent: int
-    frames_dropped: int
-
-
-def _positive(name: str, value: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise ConfigError(f"{name}: must be an integer >= 1, got {value!r}")
-    return value
 
 
 class SocketcandServer(FrameSource, FrameSink):
@@ -96,14 +82,7 @@ class SocketcandServer(FrameSource, FrameSink):
         relay_between_clients: bool = True,
         client_sndbuf_bytes: int | None = None,
     ) -> None:
-        if not isinstance(host, str) or not host:
-            raise ConfigError(f"host: must be a non-empty address, got {host!r}")
-        if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
-            raise ConfigError(f"port: must be an integer in 0..65535 (0: ephemeral), got {port!r}")
-        if not isinstance(channel, str) or not 0 < len(channel) <= 16 or " " in channel:
-            raise ConfigError(
-                f"channel: must be 1 to 16 characters without spaces, got {channel!r}"
-            )
+        _check_endpoint(host, port, channel)
         self.host, self.channel = host, channel
         self.client_queue_frames = _positive("client_queue_frames", client_queue_frames)
         self._rx_limit = _positive("rx_queue_frames", rx_queue_frames)
@@ -320,47 +299,6 @@ class SocketcandServer(FrameSource, FrameSink):
         except OSError:
             pass
         conn.close()
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Serve a socketcand channel; with ``--frames N`` play N demo frames, then exit."""
-    parser = argparse.ArgumentParser(
-        prog="python -m gyrotherm.sim._socketcand", description=main.__doc__
-    )
-    parser.add_argument("--host", default="127.0.0.1", help="listen address (default 127.0.0.1)")
-    parser.add_argument("--port", type=int, default=0, help="TCP port (default 0: ephemeral)")
-    parser.add_argument("--channel", default="vcan0", help="channel name served (default vcan0)")
-    parser.add_argument("--frames", type=int, default=None, help="play N demo frames, then exit")
-    parser.add_argument("--clients", type=int, default=1, help="clients to wait for (default 1)")
-    parser.add_argument("--timeout-s", type=float, default=30.0, help="wait limit (default 30 s)")
-    args = parser.parse_args(argv)
-    try:
-        server = SocketcandServer(host=args.host, port=args.port, channel=args.channel).start()
-    except ConfigError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    with server:
-        print(server.port, flush=True)
-        if args.frames is None:
-            try:
-                threading.Event().wait()
-            except KeyboardInterrupt:
-                return 0
-        if not server.wait_for_clients(args.clients, args.timeout_s):
-            print(
-                f"error: fewer than {args.clients} clients within {args.timeout_s} s",
-                file=sys.stderr,
-            )
-            return 3
-        chunk = min(1024, server.client_queue_frames)
-        for first in range(0, args.frames, chunk):
-            for index in range(first, min(first + chunk, args.frames)):
-                server.send(demo_frame(index))
-            if not server.flush(args.timeout_s):
-                print(f"error: clients did not read within {args.timeout_s} s", file=sys.stderr)
-                return 4
-        server.wait_until_disconnected(args.timeout_s)
-    return 0
 
 
 if __name__ == "__main__":
