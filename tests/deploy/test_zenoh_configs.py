@@ -211,6 +211,16 @@ def _opened_ephemeral(config: zenoh.Config) -> Iterator[tuple[zenoh.Session, str
         session.close()
 
 
+def _put_until(publisher: Any, payload: bytes, arrived: threading.Event) -> bool:
+    """Put ``payload`` every 0.5 s until ``arrived`` is set (at most WAIT_S): a loaded
+    machine may lose the first put while a new TLS link settles."""
+    for _ in range(int(WAIT_S / 0.5)):
+        publisher.put(payload)
+        if arrived.wait(0.5):
+            return True
+    return False
+
+
 def _wait_matching(publisher: Any) -> bool:
     """Wait until the publisher sees a matching subscriber (declarations arrived)."""
     matched = threading.Event()
@@ -244,13 +254,7 @@ def test_mutual_tls_peers_exchange_a_sample(pki: Path) -> None:
         subscriber = listener.declare_subscriber("gyrotherm/test/imu0/rate", on_sample)
         publisher = talker.declare_publisher("gyrotherm/test/imu0/rate")
         assert _wait_matching(publisher)
-        # re-send until one arrives: a loaded machine may lose the first put while
-        # the new TLS link settles (bounded: WAIT_S in 0.5 s steps)
-        for _ in range(int(WAIT_S / 0.5)):
-            publisher.put(b"rate over mTLS")
-            if got.wait(0.5):
-                break
-        assert got.is_set()
+        assert _put_until(publisher, b"rate over mTLS", got)
         assert set(received) == {b"rate over mTLS"}
         subscriber.undeclare()
         publisher.undeclare()
@@ -297,15 +301,10 @@ def test_acl_router_drops_a_viewers_publication(pki: Path) -> None:
 
         # Allowed: the daemon publishes, the viewer receives. The daemon has no
         # subscriber of its own yet, so "matching" can only mean that the router
-        # announced the viewer's subscription. Re-send until one arrives: a loaded
-        # machine may lose the first put while the TLS links settle.
+        # announced the viewer's subscription.
         daemon_pub = daemon.declare_publisher(key)
         assert _wait_matching(daemon_pub)
-        for _ in range(int(WAIT_S / 0.5)):
-            daemon_pub.put(b"from daemon")
-            if viewer_got_sample.wait(0.5):
-                break
-        assert viewer_got_sample.is_set()
+        assert _put_until(daemon_pub, b"from daemon", viewer_got_sample)
         assert set(viewer_saw) == {b"from daemon"}
 
         daemon.declare_subscriber("gyrotherm/**", daemon_on_sample)
