@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import can
 import numpy as np
@@ -14,6 +15,7 @@ from gyrotherm.codecs._wire import StatusFlags
 from gyrotherm.codecs._wire_decode import decode_rate, decode_state
 from gyrotherm.compensation import Calibration, features
 from gyrotherm.daemon import Pipeline
+from gyrotherm.sim import chamber_runs, frames_from_run
 from streamkit import RecordingSink, run_frames
 
 
@@ -37,6 +39,35 @@ def test_corrected_rates_equal_offline_compensation(
     assert [s.seq for s in states] == list(range(len(run)))
     np.testing.assert_allclose([s.temperature_c for s in states], offline.temperature_c,
                                atol=1e-9)
+
+
+@pytest.mark.parametrize("rate_hz", [10.0, 50.0])
+def test_played_run_equals_offline_compensation_above_the_sensor_rate(
+    stream_calibration: Calibration, rate_hz: float
+) -> None:
+    """The simulator's player sends one temperature frame per sensor refresh (0.1 s),
+    not one per row: at 50 Hz rows a reading is held for five rows. The fitter's
+    features must fuse it once too, or offline ΔT differs from the daemon's."""
+    run = chamber_runs([5], seed=2, rate_hz=rate_hz, hold_s=120)[0].slice(0, int(600 * rate_hz))
+    assert run.temperature_period_s() == 0.1
+    frames = list(frames_from_run(run, encoder=FrameEncoder()))
+    n_temperature = len(frames) - len(run)
+    assert n_temperature == pytest.approx(len(run) * 10.0 / rate_hz, abs=1)
+    sink = RecordingSink()
+    pipe = Pipeline(FrameDecoder(), sink, calibration=stream_calibration)
+    for msg in frames:
+        pipe.process(msg, 1.0e9)
+    got = np.array([decode_rate(p).rate_dps for p in sink.rates])
+    assert len(got) == len(run)
+    offline = features(run, stream_calibration.estimator)
+    for j, axis in enumerate("xyz"):
+        bias, _ = stream_calibration.bias_series(axis, offline.temperature_c, offline.delta_t_c)
+        np.testing.assert_allclose(got[:, j], run.rates_dps[axis] - bias, atol=1e-9)
+    # the negative control: fusing every row (the old offline rule) is visibly different
+    every_row = replace(stream_calibration.estimator, update_period_s=1e-9)
+    if rate_hz > 10.0:
+        naive = features(run, every_row)
+        assert np.max(np.abs(naive.delta_t_c - offline.delta_t_c)) > 0.1
 
 
 def test_every_frame_is_published_or_dropped_by_reason(

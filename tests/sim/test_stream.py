@@ -24,7 +24,7 @@ import can
 import numpy as np
 import pytest
 
-from gyrotherm import ConfigError, DecodeError
+from gyrotherm import ConfigError, DecodeError, RunFileError
 from gyrotherm.cli._stream import main as stream_main
 from gyrotherm.cli._stream import register
 from gyrotherm.codecs import Run
@@ -193,8 +193,11 @@ def test_temperature_frame_schedule() -> None:
     assert temp_times(from_meta) == [0.0, 0.5, 1.0]
     assert temp_times(from_meta, 1.0) == [0.0, 1.0]  # the argument wins
     bad = make_run(time_s, [20.0] * n, [0.0] * n, metadata={"temperature_period_s": "fast"})
-    with pytest.raises(ConfigError, match=r"temperature_period_s.*'fast'"):
+    with pytest.raises(RunFileError, match=r"metadata 'temperature_period_s'.*'fast'"):
         frames_from_run(bad, encoder=FrameEncoder())
+    negative = make_run(time_s, [20.0] * n, [0.0] * n, metadata={"temperature_period_s": "-2"})
+    with pytest.raises(RunFileError, match=r"temperature_period_s.*>= 0, got -2"):
+        frames_from_run(negative, encoder=FrameEncoder())
     with pytest.raises(ConfigError, match="temperature_period_s"):
         frames_from_run(plain, encoder=FrameEncoder(), temperature_period_s=-1.0)
 

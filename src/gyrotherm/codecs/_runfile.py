@@ -36,6 +36,9 @@ from gyrotherm._errors import RunFileError
 
 RUN_FILE_VERSION = 1
 AXES = ("x", "y", "z")
+TEMPERATURE_PERIOD_KEY = "temperature_period_s"
+"""Metadata key: the temperature sensor's refresh period, s (rows in between hold
+the last reading)."""
 _MAGIC = "gyrotherm-run"
 
 FloatArray = NDArray[np.float64]
@@ -108,6 +111,23 @@ class Run:
     @property
     def duration_s(self) -> float:
         return float(self.time_s[-1] - self.time_s[0]) if len(self) else 0.0
+
+    def temperature_period_s(self) -> float | None:
+        """The temperature sensor's refresh period in s from the metadata key
+        ``temperature_period_s`` (rows in between repeat the held reading), or
+        None when the run does not record it. Raises :class:`RunFileError` naming
+        the file, run and key when the value is not a finite number >= 0."""
+        text = self.metadata.get(TEMPERATURE_PERIOD_KEY)
+        if text is None:
+            return None
+        where = f"{self.source}: run {self.name!r} metadata {TEMPERATURE_PERIOD_KEY!r}"
+        try:
+            value = float(text)
+        except ValueError:
+            raise RunFileError(f"{where}: {text!r} is not a number of seconds") from None
+        if not (np.isfinite(value) and value >= 0):
+            raise RunFileError(f"{where}: must be a finite number of seconds >= 0, got {value!r}")
+        return value
 
     def slice(self, start: int, stop: int) -> Run:
         """Rows ``start:stop`` as a new run (same name and metadata)."""

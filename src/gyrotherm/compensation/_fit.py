@@ -55,7 +55,18 @@ class RunFeatures:
 
 
 def features(run: Run, estimator: EstimatorConfig) -> RunFeatures:
-    """Estimate T and ΔT along ``run`` with the online estimator."""
+    """Estimate T and ΔT along ``run`` with the online estimator.
+
+    Fed as the daemon is: with ``estimator.update_period_s == 0`` and a run that
+    records its sensor's refresh period (metadata ``temperature_period_s``, written
+    by the simulator), each reading is fused once, on the row where it appears —
+    one temperature frame per period, as ``gyrotherm sim stream`` plays the run —
+    instead of once per row (a 50 Hz run of a 10 Hz sensor would fuse every
+    reading five times). A positive ``update_period_s`` overrides the run's period.
+    """
+    period = run.temperature_period_s()
+    if estimator.update_period_s == 0 and period:
+        estimator = replace(estimator, update_period_s=period)
     est = estimate_series(run.time_s, run.temperature_c, estimator)
     return RunFeatures(
         name=run.name,

@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 
 from gyrotherm._errors import ConfigError
 from gyrotherm.codecs import Run
+from gyrotherm.codecs._runfile import TEMPERATURE_PERIOD_KEY
 from gyrotherm.compensation import ModelSpec, Term, get_model
 from gyrotherm.sim._chamber import ChamberModel, ChamberProfile, first_order, ou_process
 
@@ -155,7 +156,7 @@ def simulate(
         rates[axis] = _quantise(bias + offset + white + bi + rrw, gyro.rate_lsb_dps)
         truth[axis] = bias
     meta = {"seed": str(seed), "rate_hz": f"{rate_hz:g}", "tau_s": f"{gyro.tau_s:g}",
-            **(metadata or {})}
+            TEMPERATURE_PERIOD_KEY: repr(float(gyro.temperature_period_s)), **(metadata or {})}
     return Run(name=name, time_s=t, temperature_c=reading, rates_dps=rates,
                chamber_c=air, true_bias_dps=truth, metadata=meta,
                extra={"true_temperature_c": die, "true_delta_t_c": grad})

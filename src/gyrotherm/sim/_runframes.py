@@ -42,12 +42,12 @@ from gyrotherm._errors import ConfigError, DecodeError
 from gyrotherm.codecs._candump import read_candump
 from gyrotherm.codecs._canenc import FrameEncoder
 from gyrotherm.codecs._canmap import DEFAULT_DBC_PATH, Layout, SignalMap, resolve_layout
+from gyrotherm.codecs._runfile import TEMPERATURE_PERIOD_KEY as TEMPERATURE_PERIOD_KEY
 from gyrotherm.codecs._runfile import Run
 from gyrotherm.sim._framepack import _encode_rows
 
 DEFAULT_TEMPERATURE_PERIOD_S = 0.1
 """Temperature frame period when neither the caller nor the run names one, s."""
-TEMPERATURE_PERIOD_KEY = "temperature_period_s"
 """Run metadata key read for the temperature frame period, s."""
 
 RATE, TEMPERATURE, OTHER = 0, 1, 2
@@ -95,19 +95,14 @@ class _Temperature(NamedTuple):
 
 
 def _period(run: Run, temperature_period_s: float | None) -> float:
-    if temperature_period_s is not None:
-        value, where = temperature_period_s, "temperature_period_s"
-    elif TEMPERATURE_PERIOD_KEY in run.metadata:
-        text = run.metadata[TEMPERATURE_PERIOD_KEY]
-        where = f"{run.source}: run {run.name!r} metadata {TEMPERATURE_PERIOD_KEY!r}"
-        try:
-            value = float(text)
-        except ValueError:
-            raise ConfigError(f"{where}: {text!r} is not a number of seconds") from None
-    else:
-        return DEFAULT_TEMPERATURE_PERIOD_S
+    if temperature_period_s is None:
+        recorded = run.temperature_period_s()  # RunFileError when malformed
+        return DEFAULT_TEMPERATURE_PERIOD_S if recorded is None else recorded
+    value = temperature_period_s
     if not (math.isfinite(value) and value >= 0):
-        raise ConfigError(f"{where}: must be a finite number of seconds >= 0, got {value!r}")
+        raise ConfigError(
+            f"temperature_period_s: must be a finite number of seconds >= 0, got {value!r}"
+        )
     return float(value)
 
 
