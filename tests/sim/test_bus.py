@@ -12,6 +12,7 @@ import pytest
 from gyrotherm import ConfigError
 from gyrotherm.sim._bus import BusAdapter, FrameSink, FrameSource, open_bus
 from gyrotherm.sim._socketcand import SocketcandServer
+from streamkit import dead_port
 
 TIMEOUT_S = 10.0
 _channels = itertools.count()
@@ -173,3 +174,17 @@ def test_socketcan_is_a_clear_config_error_without_af_can() -> None:
 def test_bad_options_name_the_field(kwargs: dict[str, object], field: str) -> None:
     with pytest.raises(ConfigError, match=rf"^{field}: .*got "):
         open_bus(**kwargs)  # type: ignore[arg-type]
+
+
+def test_socketcand_without_a_server_fails_at_once_without_python_can_retrying(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """python-can retries a refused connection in a busy loop for 10 s (one warning per
+    attempt); the daemon reopens a silent bus from its processing loop, so open_bus
+    must give up after one refused probe instead."""
+    caplog.set_level(logging.DEBUG, logger="can")
+    with dead_port() as port, pytest.raises(ConfigError) as info:
+        open_bus(interface="socketcand", channel="vcan0", host="127.0.0.1", port=port)
+    assert f"127.0.0.1:{port}" in str(info.value) and "no socketcand server" in str(info.value)
+    assert isinstance(info.value.__cause__, ConnectionRefusedError)
+    assert not [r for r in caplog.records if "connect" in r.getMessage().lower()]

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import errno
 import logging
+import socket
 import threading
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
@@ -201,6 +202,21 @@ def _socketcan_error(channel: str, exc: OSError) -> ConfigError:
     )
 
 
+SOCKETCAND_PROBE_TIMEOUT_S = 1.0
+"""Longest wait for a socketcand server's TCP port before giving up, s."""
+
+
+def _probe_socketcand(host: str, port: int, channel: str) -> None:
+    """Fail fast (ConfigError) when nothing accepts TCP connections at host:port."""
+    try:
+        socket.create_connection((host, port), timeout=SOCKETCAND_PROBE_TIMEOUT_S).close()
+    except OSError as exc:
+        raise ConfigError(
+            f"interface 'socketcand', channel {channel!r} at {host}:{port}: cannot open the "
+            f"bus (no socketcand server within {SOCKETCAND_PROBE_TIMEOUT_S:g} s: {exc})"
+        ) from exc
+
+
 def open_bus(
     *,
     interface: str,
@@ -216,8 +232,11 @@ def open_bus(
       the sender's timestamps (``preserve_timestamps``).
     * ``socketcan``: a Linux CAN interface (``can0`` on a vehicle); ``bitrate`` is
       informative only (set it with ``ip link``).
-    * ``socketcand``: a socketcand server at ``host``:``port`` serving ``channel``
-      (python-can retries the TCP connection for up to 10 s). python-can's
+    * ``socketcand``: a socketcand server at ``host``:``port`` serving ``channel``.
+      The TCP port is probed first (at most :data:`SOCKETCAND_PROBE_TIMEOUT_S`):
+      python-can itself would retry a refused connection in a busy loop for 10 s,
+      logging each attempt, which would stall a caller such as the daemon's
+      processing loop (and its watchdog) while a server is down. python-can's
       per-read "Got incomplete message" warnings are filtered out (normal TCP
       splitting, thousands a second at high rates).
 
@@ -231,6 +250,8 @@ def open_bus(
     if bitrate is not None:
         kwargs["bitrate"] = bitrate
     if interface == "socketcand":
+        assert host is not None and port is not None  # _check_options
+        _probe_socketcand(host, port, channel)
         kwargs.update(host=host, port=port)
         _quiet_socketcand_client()
     else:
