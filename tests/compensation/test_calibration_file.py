@@ -119,3 +119,13 @@ def test_read_calibration_ids_the_bytes_parsed(calibration: Calibration, tmp_pat
     cal, cid = read_calibration(p)
     assert cid == hashlib.sha256(p.read_bytes()).hexdigest()[:16]
     assert cal.coefficients == calibration.coefficients
+
+
+def test_save_where_it_cannot_write_names_the_path(
+    calibration: Calibration, tmp_path: Path
+) -> None:
+    target = tmp_path / "missing-dir" / "imu0.json"
+    with pytest.raises(CalibrationError, match=r"missing-dir/imu0\.json: cannot write") as info:
+        calibration.save(target)
+    assert isinstance(info.value.__cause__, FileNotFoundError)
+    assert not list(tmp_path.rglob("*.tmp"))  # nothing left behind

@@ -18,6 +18,7 @@ raises :class:`gyrotherm.CalibrationError` naming the file and field.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
@@ -152,11 +153,18 @@ class Calibration:
         }
 
     def save(self, path: str | Path) -> Path:
-        """Write the calibration as JSON (atomically: temp file then rename)."""
+        """Write the calibration as JSON (atomically: temp file then rename).
+
+        Raises :class:`CalibrationError` naming the path when it cannot be written."""
         p = Path(path)
         tmp = p.with_name(p.name + ".tmp")
-        tmp.write_text(json.dumps(self.to_dict(), indent=2) + "\n", encoding="utf-8")
-        tmp.replace(p)
+        try:
+            tmp.write_text(json.dumps(self.to_dict(), indent=2) + "\n", encoding="utf-8")
+            tmp.replace(p)
+        except OSError as exc:
+            with contextlib.suppress(OSError):
+                tmp.unlink(missing_ok=True)
+            raise CalibrationError(f"{p}: cannot write the calibration file ({exc})") from exc
         return p
 
     @classmethod
