@@ -88,11 +88,18 @@ def test_health_vector_with_nil_sensor_time() -> None:
         + b"\x81\xacdecode_error\x02"
         + b"\x08\xa5cal-A"
     )  # fmt: skip
-    msg = decode_health(data)
+    msg = decode_health(data)  # 11 elements: a publisher from before counter_jumps
     assert msg == HealthMessage(7, None, 12.0, 3.5, 1000, 998, {"decode_error": 2},
                                 StatusFlags.NO_CALIBRATION, "cal-A")  # fmt: skip
-    assert msg.drops["decode_error"] == 2
-    assert encode_health(msg) == data
+    assert msg.drops["decode_error"] == 2 and msg.counter_jumps == 0
+    # today's encoder appends counter_jumps (fixarray(12), positive fixint)
+    assert encode_health(msg) == b"\x9c" + data[1:] + b"\x00"
+    jumped = HealthMessage(7, None, 12.0, 3.5, 1000, 998, {"decode_error": 2},
+                           StatusFlags.NO_CALIBRATION, "cal-A", 3)  # fmt: skip
+    assert encode_health(jumped) == b"\x9c" + data[1:] + b"\x03"
+    assert decode_health(b"\x9c" + data[1:] + b"\x03") == jumped
+    with pytest.raises(DecodeError, match=r"field 'counter_jumps' \(index 11\)"):
+        decode_health(b"\x9c" + data[1:] + b"\xff")  # negative fixint -1
 
 
 def test_calibration_vector() -> None:

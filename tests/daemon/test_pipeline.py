@@ -225,3 +225,23 @@ def test_set_calibration_swaps_atomically(
     after = decode_rate(sink.rates[-1])
     assert not after.flags & StatusFlags.NO_CALIBRATION
     assert after.bias_dps != (0.0, 0.0, 0.0)
+
+
+def test_health_counts_counter_jumps_of_both_messages(
+    short_runs: list[Run], stream_calibration: Calibration
+) -> None:
+    frames = list(run_frames(short_runs[0].slice(0, 40), FrameEncoder()))
+    kinds = [("temperature" if i % 2 == 0 else "rate") for i in range(len(frames))]
+    assert kinds[:2] == ["temperature", "rate"]  # run_frames: temperature, then rate, per row
+    lost = {10, 21, 22}  # one temperature frame; one rate frame and the next temperature
+    sink = RecordingSink()
+    pipe = Pipeline(FrameDecoder(), sink, calibration=stream_calibration)
+    for i, msg in enumerate(frames):
+        if i not in lost:
+            pipe.process(msg, 0.0)
+    health = pipe.health(seq=0, receive_time_s=0.0, uptime_s=1.0, calibration_id="c")
+    # temperature counters jump after frames 10 and 22, the rate counter after frame 21
+    assert health.counter_jumps == pipe.counters().counter_jumps == 3
+    assert health.drops == {}  # "deliver": jumps are counted, the frames still published
+    flagged = [decode_rate(p).flags & StatusFlags.COUNTER_JUMP for p in sink.rates]
+    assert sum(1 for f in flagged if f) == 1

@@ -181,6 +181,7 @@ def listen_main(argv: list[str] | None = None) -> int:
         print(
             f"  daemon: uptime_s={h.uptime_s:.1f} frames_received={h.frames_received} "
             f"frames_published={h.frames_published} drops: {drops} "
+            f"counter_jumps={h.counter_jumps} "
             f"calibration={h.calibration_id or '-'} flags={_flags_text(h.flags)}"
         )
     if args.count is not None:

@@ -8,7 +8,7 @@ the hot path); element 0 is the message kind, element 1 the schema version::
     state   [2, 1, seq, sensor_time_s, receive_time_s, temperature_c, temperature_std_c,
              delta_t_c, delta_t_std_c, bias_x, bias_y, bias_z, flags]
     health  [3, 1, seq, sensor_time_s | nil, receive_time_s, uptime_s, frames_received,
-             frames_published, {reason: count}, flags, calibration_id]
+             frames_published, {reason: count}, flags, calibration_id, counter_jumps]
     calibration reply
             [4, 1, calibration_id, {calibration} | nil, health array | nil]
 
@@ -125,7 +125,9 @@ class HealthMessage:
     ``sensor_time_s`` is None before the first frame. ``drops`` counts discarded
     frames by reason (e.g. ``"decode_error"``, ``"counter_jump"``, ``"publish_error"``,
     ``"no_subscriber"``); it is stored as a read-only mapping. ``calibration_id`` is ""
-    without calibration.
+    without calibration. ``counter_jumps`` counts CAN counter jumps of both mapped
+    messages since start, delivered or rejected (appended in schema 1: 0 when the
+    publisher predates it).
     """
 
     seq: int
@@ -137,6 +139,7 @@ class HealthMessage:
     drops: Mapping[str, int]
     flags: StatusFlags = StatusFlags.NONE
     calibration_id: str = ""
+    counter_jumps: int = 0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "drops", MappingProxyType(dict(self.drops)))
@@ -210,7 +213,7 @@ def _health_list(msg: HealthMessage) -> list[Any]:
     return [
         3, SCHEMA_VERSION, msg.seq, msg.sensor_time_s, msg.receive_time_s, msg.uptime_s,
         msg.frames_received, msg.frames_published, dict(msg.drops), int(msg.flags),
-        msg.calibration_id,
+        msg.calibration_id, msg.counter_jumps,
     ]  # fmt: skip
 
 

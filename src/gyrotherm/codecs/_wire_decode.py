@@ -139,6 +139,11 @@ _SPECS: dict[MessageKind, list[tuple[str, _Check]]] = {
     ],
 }  # fmt: skip
 
+#: Fields appended within schema 1: (name, check, value when the array ends before it).
+_APPENDED: dict[MessageKind, list[tuple[str, _Check, Any]]] = {
+    MessageKind.HEALTH: [("counter_jumps", _u64, 0)],
+}
+
 
 def _build_rate(v: list[Any]) -> RateMessage:
     return RateMessage(v[0], v[1], v[2], (v[3], v[4], v[5]), (v[6], v[7], v[8]),
@@ -176,6 +181,8 @@ def _decode_fields(
             f"array has {len(a)} elements, expected {2 + len(spec)}"
         )
     values = [check(a[i], i, name, what) for i, (name, check) in enumerate(spec, start=2)]
+    for i, (name, check, default) in enumerate(_APPENDED.get(kind, ()), start=2 + len(spec)):
+        values.append(check(a[i], i, name, what) if i < len(a) else default)
     return build(values)
 
 

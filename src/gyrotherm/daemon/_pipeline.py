@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from gyrotherm._errors import PublishError
-from gyrotherm.codecs import FrameDecoder, RateSample, Rejection, TemperatureSample
+from gyrotherm.codecs import FrameDecoder, RateSample, Rejection, RejectReason, TemperatureSample
 from gyrotherm.codecs._wire import (
     HealthMessage,
     StateMessage,
@@ -71,7 +71,8 @@ class Sink(Protocol):
 
 @dataclass(frozen=True)
 class Counters:
-    """Frame accounting snapshot."""
+    """Frame accounting snapshot. ``counter_jumps``: CAN counter jumps the decoder saw
+    in both mapped messages (rate and temperature), delivered or rejected."""
 
     frames_received: int
     frames_published: int
@@ -101,7 +102,6 @@ class Pipeline:
         self._rate_published = 0
         self._state_published = 0
         self._drops: Counter[str] = Counter()
-        self._jumps = 0
         self._rate_seq = 0
         self._state_seq = 0
         self._last_counter: int | None = None
@@ -169,7 +169,6 @@ class Pipeline:
             last = self._last_counter
             if last is not None and s.counter != (last + 1) & 0xF:
                 flags |= StatusFlags.COUNTER_JUMP
-                self._jumps += 1
             self._last_counter = s.counter
         b0, b1, b2 = self._bias
         x, y, z = s.rate_x_dps, s.rate_y_dps, s.rate_z_dps
@@ -264,7 +263,7 @@ class Pipeline:
             rate_published=self._rate_published,
             state_published=self._state_published,
             drops=dict(self._drops),
-            counter_jumps=self._jumps,
+            counter_jumps=self._decoder.stats().events[RejectReason.COUNTER_JUMP],
         )
 
     def health(self, *, seq: int, receive_time_s: float, uptime_s: float,
@@ -274,4 +273,4 @@ class Pipeline:
         c = self.counters()
         return HealthMessage(seq, self.last_sensor_time_s, receive_time_s, uptime_s,
                              c.frames_received, c.frames_published, c.drops,
-                             self._flags | extra_flags, calibration_id)
+                             self._flags | extra_flags, calibration_id, c.counter_jumps)
