@@ -63,7 +63,10 @@ def test_shipped_configs_load(name: str) -> None:
         ('vehicle = "v"\nsensor = "a"\n[can]\nbitrate = "fast"', "key 'bitrate' must be int"),
         ('vehicle = "v"\nsensor = "a"\n[can]\ninterface = "socketcand"',
          "'socketcand' needs 'host' and 'port'"),
-        ('vehicle = "v"\nsensor = "a"\n[can.signals]\nrate_message = "X"', "signals"),
+        ('vehicle = "v"\nsensor = "a"\n[can.signals]\nrate_message = "X"',
+         r"\[can\]\.signals: missing key\(s\) \['rate_x_signal', 'rate_y_signal'"),
+        ('vehicle = "v"\nsensor = "a"\n[estimator]\ntau_s = "x"',
+         r"\[estimator\]: estimator.tau_s: expected a number, got 'x'"),
         ('vehicle = "v"\nsensor = "a"\nhealth_period_s = 0', "health_period_s = 0 is outside"),
         ('vehicle = "v"\nsensor = "a"\n[zenoh]\nconfig = "z.json5"\nmode = "peer"',
          "'config' excludes"),
@@ -83,8 +86,9 @@ def test_shipped_configs_load(name: str) -> None:
 def test_bad_configs_name_the_key(tmp_path: Path, toml: str, message: str) -> None:
     p = tmp_path / "bad.toml"
     p.write_text(toml)
-    with pytest.raises(ConfigError, match=message):
+    with pytest.raises(ConfigError, match=message) as info:
         load_config(p)
+    assert str(info.value).startswith(f"{p}: "), "the error names the file first"
 
 
 def test_not_toml_and_missing(tmp_path: Path) -> None:

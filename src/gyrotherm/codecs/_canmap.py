@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import MISSING, dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -118,6 +118,14 @@ class SignalMap:
         if unknown:
             raise ConfigError(
                 f"{source}: unknown key(s) {unknown}; expected some of {sorted(known)}"
+            )
+        required = [f.name for f in fields(cls)
+                    if f.default is MISSING and f.default_factory is MISSING]  # fmt: skip
+        missing = [name for name in required if name not in values]
+        if missing:
+            raise ConfigError(
+                f"{source}: missing key(s) {missing}: a signal map names the rate message "
+                "and its x, y, z signals and the temperature message and signal"
             )
         try:
             return cls(**values)

@@ -134,7 +134,10 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
     sensor = _take(data, "sensor", str, source, None)
     if vehicle is None or sensor is None:
         raise ConfigError(f"{source}: keys 'vehicle' and 'sensor' are required")
-    keys(vehicle, sensor)  # validates the names
+    try:
+        keys(vehicle, sensor)  # validates the names
+    except ConfigError as exc:
+        raise ConfigError(f"{source}: {exc}") from exc
     cal = _take(data, "calibration", str, source, None)
     health = _bounded(_take(data, "health_period_s", (int, float), source, 1.0), 0.05, 3600,
                       f"{source}: health_period_s")

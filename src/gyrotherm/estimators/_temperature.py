@@ -104,7 +104,7 @@ class EstimatorConfig:
             raise ConfigError(f"{where}: unknown field(s) {sorted(unknown)}")
         try:
             return cls(**data)
-        except TypeError as exc:
+        except (TypeError, ConfigError) as exc:
             raise ConfigError(f"{where}: {exc}") from exc
 
 
