@@ -217,8 +217,15 @@ def _get(data: Any, path: str, kind: type | tuple[type, ...], source: str) -> An
 
 
 def _num(data: Any, path: str, source: str) -> float:
+    return _value(_get(data, path, (int, float), source), path, source)
+
+
+def _value(node: Any, path: str, source: str) -> float:
+    """``node`` as a finite float; CalibrationError naming ``path`` otherwise."""
+    if not isinstance(node, int | float) or isinstance(node, bool):
+        raise CalibrationError(f"{source}: field {path!r}: expected a number, got {node!r}")
     try:
-        v = float(_get(data, path, (int, float), source))
+        v = float(node)
     except OverflowError:
         raise CalibrationError(f"{source}: field {path!r}: number too large") from None
     if not math.isfinite(v):
@@ -262,13 +269,13 @@ def _parse(data: Any, source: str) -> Calibration:
     coefficients: dict[str, tuple[float, ...]] = {}
     for axis in raw_coeffs:
         vals = _get(data, f"coefficients.{axis}", list, source)
-        coefficients[axis] = tuple(_num({"v": v}, "v", f"{source}: coefficients.{axis}")
-                                   for v in vals)
+        coefficients[axis] = tuple(_value(v, f"coefficients.{axis}[{k}]", source)
+                                   for k, v in enumerate(vals))
     try:
         estimator = EstimatorConfig.from_dict(
             _get(data, "estimator", dict, source), where=f"{source}: field 'estimator'"
         )
-        return Calibration(
+        cal = Calibration(
             model=model,
             scaling=Scaling(*(_num(data, f"scaling.{k}", source)
                               for k in ("t_ref_c", "t_scale_c", "dt_scale_c"))),
@@ -278,6 +285,8 @@ def _parse(data: Any, source: str) -> Calibration:
             estimator=estimator,
             provenance=_get(data, "provenance", dict, source),
         )
+        _check_physical(data, cal, source)
+        return cal
     except ConfigError as exc:
         msg = str(exc)
         raise CalibrationError(msg if msg.startswith(source) else f"{source}: {msg}") from exc
@@ -285,3 +294,33 @@ def _parse(data: Any, source: str) -> Calibration:
         if str(exc).startswith(source):
             raise
         raise CalibrationError(f"{source}: {exc}") from exc
+
+
+def _check_physical(data: dict[str, Any], cal: Calibration, source: str) -> None:
+    """``coefficients_physical`` (optional, informative) must agree with the centred
+    ``coefficients`` that are evaluated: an edit of the physical ones would
+    otherwise be silently ignored."""
+    phys = data.get("coefficients_physical")
+    if phys is None:
+        return
+    if not isinstance(phys, dict):
+        raise CalibrationError(f"{source}: field 'coefficients_physical': expected an object")
+    for axis in cal.axes:
+        want = cal.physical_coefficients(axis)
+        got = phys.get(axis)
+        if not isinstance(got, dict) or set(got) != set(want):
+            raise CalibrationError(
+                f"{source}: field 'coefficients_physical.{axis}': expected terms "
+                f"{sorted(want)}, got {got!r}"
+            )
+        scale = max(abs(v) for v in want.values()) or 1.0
+        for term, value in want.items():
+            path = f"coefficients_physical.{axis}.{term}"
+            stored = _value(got[term], path, source)
+            if not math.isclose(stored, value, rel_tol=1e-9, abs_tol=1e-12 * scale):
+                raise CalibrationError(
+                    f"{source}: field {path!r} = {stored!r} disagrees with "
+                    f"'coefficients.{axis}' ({value!r} in physical units): the centred "
+                    "'coefficients' are what is evaluated; refit, or delete "
+                    "'coefficients_physical'"
+                )
