@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from gyrotherm import PublishError
-from gyrotherm.codecs import FrameDecoder, FrameEncoder, Run
+from gyrotherm.codecs import FrameDecoder, FrameEncoder, RateSample, Run, TemperatureSample
 from gyrotherm.codecs._wire import StatusFlags
 from gyrotherm.codecs._wire_decode import decode_rate, decode_state
 from gyrotherm.compensation import Calibration, features
@@ -245,3 +245,22 @@ def test_health_counts_counter_jumps_of_both_messages(
     assert health.drops == {}  # "deliver": jumps are counted, the frames still published
     flagged = [decode_rate(p).flags & StatusFlags.COUNTER_JUMP for p in sink.rates]
     assert sum(1 for f in flagged if f) == 1
+
+
+def test_a_nonzero_device_status_is_flagged_until_it_clears(
+    stream_calibration: Calibration,
+) -> None:
+    enc = FrameEncoder()
+    sink = RecordingSink()
+    pipe = Pipeline(FrameDecoder(), sink, calibration=stream_calibration)
+    statuses = [0, 0, 5, 5, 0]  # the shipped DBC: 0 = OK, other values device faults
+    for k, status in enumerate(statuses):
+        t = 0.1 * k
+        pipe.process(enc.encode_temperature(TemperatureSample(t, 25.0, status)), 0.0)
+        pipe.process(enc.encode_rate(RateSample(t, 0.1, 0.2, 0.3)), 0.0)
+    states = [decode_state(p) for p in sink.states]
+    rates = [decode_rate(p) for p in sink.rates]
+    want = [bool(s) for s in statuses]
+    assert [bool(m.flags & StatusFlags.SENSOR_FAULT) for m in states] == want
+    assert [bool(m.flags & StatusFlags.SENSOR_FAULT) for m in rates] == want
+    assert [m.temperature_c for m in states] == pytest.approx([25.0] * 5, abs=0.01)

@@ -88,6 +88,9 @@ class StatusFlags(enum.IntFlag):
     #: bit 7: reserved for a raw rate at the sensor's full scale; never set by
     #: this version of the daemon.
     RATE_SATURATED = 1 << 7
+    #: bit 8: the latest temperature frame's status signal is not 0: the device
+    #: reports a fault (its reading is still used; the meaning is device-defined).
+    SENSOR_FAULT = 1 << 8
 
 
 @dataclass(frozen=True, slots=True)

@@ -70,7 +70,7 @@ def _opt_finite(v: Any, i: int, name: str, what: str) -> float | None:
 
 
 _FLOAT_ONLY = {float}
-_FLAGS_CACHE = {v: StatusFlags(v) for v in range(256)}  # every combination of bits 0-7
+_FLAGS_CACHE = {v: StatusFlags(v) for v in range(512)}  # every combination of bits 0-8
 
 
 def _to_flags(v: int) -> StatusFlags:

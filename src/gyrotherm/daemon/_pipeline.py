@@ -107,6 +107,7 @@ class Pipeline:
         self._last_counter: int | None = None
         self.last_sensor_time_s: float | None = None
         self._last_temperature_s = -math.inf
+        self._sensor_status = 0  # status signal of the latest temperature frame
         self.calibration: Calibration | None = None
         self._estimator = TemperatureEstimator(self._default_estimator)
         self._bias: tuple[float, float, float] = _ZERO
@@ -188,6 +189,7 @@ class Pipeline:
     def _on_temperature(self, s: TemperatureSample, receive_time_s: float) -> None:
         self.last_estimate = self._estimator.update(s.time_s, s.temperature_c)
         self._last_temperature_s = s.time_s
+        self._sensor_status = s.status or 0
         self._refresh_bias()
         self._publish_state(s.time_s, receive_time_s)
 
@@ -218,6 +220,8 @@ class Pipeline:
                     flags |= StatusFlags.DELTA_T_CLAMPED
         if self.calibration is None:
             flags |= StatusFlags.NO_CALIBRATION
+        if self._sensor_status:
+            flags |= StatusFlags.SENSOR_FAULT
         self._flags = flags
 
     def _publish_state(self, sensor_time_s: float, receive_time_s: float) -> None:
