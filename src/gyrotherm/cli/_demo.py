@@ -20,14 +20,12 @@ from typing import Any
 
 import numpy as np
 
-from gyrotherm.cli._offline import cmd_paper
+from gyrotherm.cli._offline import paper_tables
 from gyrotherm.client import Subscriber
 from gyrotherm.codecs import FrameEncoder
 from gyrotherm.codecs._wire import RateMessage, StateMessage
-from gyrotherm.compensation import default_scaling, features, fit
 from gyrotherm.daemon import Daemon, RunSummary, parse_config
-from gyrotherm.estimators import EstimatorConfig
-from gyrotherm.sim import PAPER_HEATING_MIN, GyroParams, SocketcandServer, chamber_runs
+from gyrotherm.sim import SocketcandServer
 from gyrotherm.sim._stream import FlushingSink, frames_from_run, play
 
 
@@ -47,6 +45,7 @@ class _LiveView:
         self.state: StateMessage | None = None
         self.raw: list[tuple[float, float, float]] = []
         self.corrected: list[tuple[float, float, float]] = []
+        self.seqs: list[int] = []
 
     def on_state(self, msg: StateMessage) -> None:
         self.state = msg
@@ -54,6 +53,7 @@ class _LiveView:
     def on_rate(self, msg: RateMessage) -> None:
         self.raw.append(msg.raw_rate_dps)
         self.corrected.append(msg.rate_dps)
+        self.seqs.append(msg.seq)
         if msg.sensor_time_s >= self._next:
             self._next = msg.sensor_time_s + self.every_s
             s = self.state
@@ -64,16 +64,13 @@ class _LiveView:
                   f"flags={int(msg.flags):#04x}", flush=True)
 
 
+def _rms(values: Any) -> float:
+    return float(np.sqrt(np.mean(np.square(values))))
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     print("== 1. Fit: the paper's chamber experiment, simulated ==", flush=True)
-    cmd_paper(args)
-    gyro = GyroParams()
-    est = EstimatorConfig(tau_s=gyro.tau_s)
-    runs = chamber_runs(PAPER_HEATING_MIN, seed=args.seed, rate_hz=args.rate_hz)
-    valid = chamber_runs([60], seed=args.seed, rate_hz=args.rate_hz, validation=True)[0]
-    feats = [features(r, est) for r in runs]
-    cal = fit(feats, "paper", estimator=est, method="paper-average",
-              scaling=default_scaling(feats))
+    valid, cal = paper_tables(args)  # the eq. 12 calibration, streamed below
     print(f"\n== 2. Stream: {valid.name} as CAN frames → daemon → Zenoh → client "
           f"({args.speed:g}× real time) ==", flush=True)
     with tempfile.TemporaryDirectory(prefix="gyrotherm-demo-") as tmp:
@@ -81,11 +78,15 @@ def cmd_demo(args: argparse.Namespace) -> int:
         summary, view, stats = _stream(valid, cal_path, speed=args.speed)
     raw = np.array(view.raw)
     cor = np.array(view.corrected)
-    print("\n== Summary ==")
+    rows = np.array(view.seqs)  # one rate frame per row: seq = row of the run
+    print("\n== Summary ==  (the gyro is at rest: raw output = bias + noise)")
     if len(raw):
         for j, axis in enumerate("xyz"):
-            print(f"axis {axis}: bias RMS raw {np.sqrt(np.mean(raw[:, j] ** 2)):.4f} °/s → "
-                  f"compensated {np.sqrt(np.mean(cor[:, j] ** 2)):.4f} °/s")
+            truth = valid.true_bias_dps[axis][rows]
+            applied = raw[:, j] - cor[:, j]
+            print(f"axis {axis}: output RMS raw {_rms(raw[:, j]):.4f} °/s → compensated "
+                  f"{_rms(cor[:, j]):.4f} °/s; bias error RMS (vs the simulator's true "
+                  f"bias) {_rms(truth):.4f} → {_rms(applied - truth):.4f} °/s")
     print(f"frames in {summary.frames_received}, published {summary.frames_published}, "
           f"dropped {sum(summary.drops.values())} by reason {dict(sorted(summary.drops.items()))}")
     print(f"client: {stats.rate.received} rate messages, gaps {stats.rate.gaps}, "

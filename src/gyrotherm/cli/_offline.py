@@ -14,10 +14,11 @@ from gyrotherm.cli._common import (
     progress,
 )
 from gyrotherm.cli._tables import coefficient_table, error_table, score_table
-from gyrotherm.codecs import write_run
+from gyrotherm.codecs import Run, write_run
 from gyrotherm.compensation import (
     METHODS,
     MODELS,
+    Calibration,
     RunFeatures,
     default_scaling,
     features,
@@ -91,6 +92,13 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 def cmd_paper(args: argparse.Namespace) -> int:
     """Simulate the paper's experiment, fit, and print Table 1- and Table 2-style results."""
+    paper_tables(args)
+    return 0
+
+
+def paper_tables(args: argparse.Namespace) -> tuple[Run, Calibration]:
+    """Print the paper's tables (see :func:`cmd_paper`); return the validation run and
+    the eq. 12 (paper-average) calibration fitted on the heating runs."""
     gyro = GyroParams()
     est = EstimatorConfig(tau_s=gyro.tau_s)
     quiet = args.quiet
@@ -128,7 +136,7 @@ def cmd_paper(args: argparse.Namespace) -> int:
     print()
     print(error_table(columns, title="Table 2 — validation run (60 min heating), "
                       "errors after compensation, mean over axes x, y, z"))
-    return 0
+    return valid, avg
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
