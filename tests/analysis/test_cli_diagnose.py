@@ -37,8 +37,26 @@ def test_cli_writes_schema_json_and_report(tmp_path: Path) -> None:
     assert [f["effect"] for f in data["findings"]] == ["drift"]
     assert data["findings"][0]["params"]["slope_dps_per_h"] == pytest.approx(0.15, rel=0.3)
     assert data["extended"]["gain"] > 1.1
-    stats = {m["statistic"] for m in data["simulation"]["mismatch"]}
+    mismatch = data["simulation"]["mismatch"]
+    stats = {m["statistic"] for m in mismatch}
     assert {"drift_dps_per_h", "allan_deviation_10s_dps"} <= stats
+    # every statistic against the replays' spread, largest |z| first
+    assert data["simulation"]["replays"] == 5
+    threshold = data["simulation"]["z_threshold"]
+    assert threshold == pytest.approx(7.25, abs=0.01)
+    assert [abs(m["z"]) for m in mismatch] == sorted((abs(m["z"]) for m in mismatch),
+                                                     reverse=True)
+    for m in mismatch:
+        assert m["z"] == pytest.approx((m["measured"] - m["sim_mean"]) / m["sim_std"])
+        assert m["significant"] == (abs(m["z"]) > threshold)
+        assert m["extended_z"] == pytest.approx(
+            (m["measured"] - m["extended_mean"]) / m["extended_std"])
+    assert data["simulation"]["significant"] == [m["statistic"] for m in mismatch
+                                                 if m["significant"]]
+    report = (tmp_path / "rep" / "report.md").read_text(encoding="utf-8")
+    assert "| statistic | measured | simulated (paper), mean ± std | z | simulated " \
+        "(extended), mean ± std | z (extended) |" in report
+    assert "Significant mismatches (paper model): " in report
     for name in ("report.md", "measured_vs_simulated.png", "residual_vs_temperature.png",
                  "residual_vs_time.png", "before_after.png"):
         assert (tmp_path / "rep" / name).stat().st_size > 0

@@ -9,14 +9,8 @@ plots. :func:`synth_runs` is an independent generator (two-node thermal
 network, quantised slow readout, Gauss–Markov noise) for testing it.
 """
 
-from gyrotherm.analysis._diagnose import (
-    SCHEMA,
-    Diagnosis,
-    Finding,
-    Mismatch,
-    SimulationComparison,
-    diagnose,
-)
+from gyrotherm.analysis._compare import Mismatch, SimulationComparison
+from gyrotherm.analysis._diagnose import SCHEMA, Diagnosis, Finding, diagnose
 from gyrotherm.analysis._effects import (
     EFFECTS,
     ExtendedModel,

@@ -3,8 +3,12 @@
 1. Prepare the runs (:mod:`._prep`), fit the baseline (paper model, one
    offset per run) and score it leave-one-run-out (:mod:`._select`).
 2. Calibrate gyrotherm's simulator to the runs, replay their temperature
-   histories and compare residual statistics of measured and simulated
-   output (:mod:`._simulate`, :mod:`._stats`).
+   histories several times (noise seeds) with the baseline and the extended
+   model, and score each residual statistic of the measured output against
+   the replays' spread: z = (measured − replay mean)/replay std, sorted by |z|,
+   significant beyond a threshold set for the number of replays; statistics
+   the runs cannot show are listed in ``notes`` (:mod:`._compare`,
+   :mod:`._simulate`, :mod:`._stats`).
 3. Select effects (forward selection with held-out and penalised criteria),
    refit the extended model, replay it through the extended simulator, and
    report (schema ``gyrotherm.diagnosis/1``).
@@ -25,12 +29,17 @@ from typing import Any
 
 import numpy as np
 
-from gyrotherm._errors import CalibrationError
+from gyrotherm._errors import CalibrationError, ConfigError
+from gyrotherm.analysis._compare import (
+    DEFAULT_REPLAYS,
+    MIN_REPLAYS,
+    SimulationComparison,
+    compare_simulation,
+)
 from gyrotherm.analysis._effects import EFFECTS, ExtendedModel
 from gyrotherm.analysis._prep import (
     DEFAULT_TAU_S,
     Prepared,
-    Readout,
     characterise,
     estimator_for,
     fit_tau,
@@ -39,8 +48,6 @@ from gyrotherm.analysis._prep import (
 )
 from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._select import Selection, select
-from gyrotherm.analysis._simulate import SimCalibration, calibrate, replay
-from gyrotherm.analysis._stats import gauss_markov_fit, mismatch_order, residual_statistics
 from gyrotherm.codecs import AXES, Run
 from gyrotherm.compensation import Scaling
 
@@ -58,32 +65,6 @@ class Finding:
     def to_dict(self) -> dict[str, Any]:
         return {"effect": self.effect, "params": dict(self.params), "evidence": self.evidence,
                 "heldout_rms_dps": self.heldout_rms_dps, "gain": self.gain}
-
-
-@dataclass(frozen=True)
-class Mismatch:
-    statistic: str
-    measured: float
-    simulated: float
-    simulated_extended: float | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"statistic": self.statistic, "measured": self.measured,
-                               "simulated": self.simulated}
-        if self.simulated_extended is not None:
-            out["simulated_extended"] = self.simulated_extended
-        return out
-
-
-@dataclass(frozen=True)
-class SimulationComparison:
-    calibration: SimCalibration
-    runs: tuple[Run, ...]
-    prepared: tuple[Prepared, ...]
-    residuals: tuple[np.ndarray, ...]
-    extended_runs: tuple[Run, ...]
-    extended_prepared: tuple[Prepared, ...]
-    mismatch: tuple[Mismatch, ...]
 
 
 @dataclass(frozen=True)
@@ -125,10 +106,7 @@ class Diagnosis:
                 "heldout_rms_dps": self.extended_heldout_rms_dps,
                 "gain": self.gain,
             },
-            "simulation": {
-                "mismatch": [m.to_dict() for m in sim.mismatch] if sim else [],
-                "calibration": sim.calibration.to_dict() if sim else None,
-            },
+            "simulation": sim.to_dict() if sim else {"mismatch": [], "calibration": None},
             "notes": list(self.notes),
         }
 
@@ -176,11 +154,19 @@ def diagnose(
     margin: float = 0.10,
     simulate: bool = True,
     seed: int = 0,
+    replays: int = DEFAULT_REPLAYS,
     features: str = "smooth",
     progress: Callable[[str], None] | None = None,
 ) -> Diagnosis:
-    """Diagnose ``runs`` (≥ 2, one device) on ``axis`` (default: first rate column)."""
+    """Diagnose ``runs`` (≥ 2, one device) on ``axis`` (default: first rate column).
+
+    ``replays`` (≥ 2): how many times the simulator replays the runs, per model,
+    with seeds ``seed + 100 000·k``; their spread gives each statistic's z-score
+    (:mod:`._compare`)."""
     say = progress or (lambda _msg: None)
+    if simulate and replays < MIN_REPLAYS:
+        raise ConfigError(f"diagnose: replays = {replays!r} is below {MIN_REPLAYS}: the "
+                          "replays' spread needs at least 2 of them")
     if len(runs) < 2:
         raise CalibrationError(
             f"diagnosis needs at least 2 runs (leave-one-run-out), got {len(runs)}")
@@ -239,75 +225,10 @@ def diagnose(
     )
     if not simulate:
         return diagnosis
-    say("calibrating and replaying the simulator")
+    say(f"calibrating the simulator and replaying the runs {replays}× per model")
     from dataclasses import replace
 
     sim = compare_simulation(runs, readouts, diagnosis, est_tau=tau_s, self_heating_c=heating,
-                             seed=seed, features=features)
-    return replace(diagnosis, simulation=sim)
+                             seed=seed, replays=replays, features=features)
+    return replace(diagnosis, simulation=sim, notes=(*diagnosis.notes, *sim.notes))
 
-
-def _stats_for(
-    prepared: Sequence[Prepared], scaling: Scaling, readouts: Sequence[Readout]
-) -> tuple[dict[str, float], list[np.ndarray], list[float]]:
-    sel = Selector(prepared, scaling)
-    ev = sel.evaluate({})
-    raw = sel.residuals_raw(ev)
-    offsets = [float(r.mean()) for r in raw]
-    resid = [r - r.mean() for r in raw]
-    arw = float(np.median([r.sample_noise_dps * 60.0 / math.sqrt(r.sample_rate_hz)
-                           for r in readouts]))
-    return residual_statistics(prepared, resid, arw_deg_per_rth=arw, offsets_dps=offsets), \
-        resid, offsets
-
-
-def compare_simulation(
-    runs: Sequence[Run],
-    readouts: Sequence[Readout],
-    diagnosis: Diagnosis,
-    *,
-    est_tau: float,
-    self_heating_c: float,
-    seed: int = 0,
-    features: str = "smooth",
-) -> SimulationComparison:
-    """Calibrate the simulator, replay baseline and extended models, compare statistics."""
-    axis = diagnosis.axis
-    scaling = diagnosis.baseline.scaling
-    measured, resid, offsets = _stats_for(diagnosis.prepared, scaling, readouts)
-
-    def calibrated(residuals: Sequence[np.ndarray]) -> SimCalibration:
-        sigma, tau_gm = gauss_markov_fit(residuals)
-        return calibrate(readouts, axis=axis, tau_s=est_tau, self_heating_c=self_heating_c,
-                         tau_from_chamber=diagnosis.tau_from_chamber, gm_sigma_dps=sigma,
-                         gm_tau_s=tau_gm, offsets_dps=offsets)
-
-    cal = calibrated(resid)
-
-    def run_sim(model: ExtendedModel, cal: SimCalibration) -> tuple[
-        list[Run], list[Prepared], dict[str, float], list[np.ndarray]
-    ]:
-        sims = replay(runs, diagnosis.prepared, cal, model, axis=axis, seed=seed)
-        sim_ro = [characterise(r, axis) for r in sims]
-        est = estimator_for(sim_ro, est_tau)
-        preps = [prepare(r, axis, est, features=features) for r in sims]
-        stats, res, _ = _stats_for(preps, scaling, sim_ro)
-        return sims, preps, stats, res
-
-    sims, preps, sim_stats, sim_resid = run_sim(diagnosis.baseline, cal)
-    if diagnosis.extended.effects:
-        # the extended simulator's noise is calibrated on the extended model's residuals:
-        # the baseline's residuals hold the missed effect, which its noise fit absorbs
-        ext_cal = calibrated(diagnosis.extended_residuals)
-        ext_runs, ext_preps, ext_stats, _ = run_sim(diagnosis.extended, ext_cal)
-    else:
-        ext_runs, ext_preps, ext_stats = sims, preps, sim_stats
-    order = mismatch_order(measured, sim_stats)
-    mismatch = tuple(
-        Mismatch(name, measured[name], sim_stats[name], ext_stats.get(name))
-        for name in order
-        if math.isfinite(measured[name]) and math.isfinite(sim_stats.get(name, math.nan))
-        and math.isfinite(ext_stats.get(name, math.nan))
-    )
-    return SimulationComparison(cal, tuple(sims), tuple(preps), tuple(sim_resid),
-                                tuple(ext_runs), tuple(ext_preps), mismatch)

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from gyrotherm.analysis._compare import SimulationComparison
 from gyrotherm.analysis._diagnose import Diagnosis
 from gyrotherm.analysis._stats import allan_deviation
 
@@ -151,8 +152,64 @@ def plot_allan(d: Diagnosis, path: Path) -> None:
     plt.close(fig)
 
 
-def _fmt(v: float) -> str:
+def _fmt(v: float | None) -> str:
     return "—" if v is None or not math.isfinite(v) else f"{v:.4g}"
+
+
+def _pm(mean: float | None, std: float | None) -> str:
+    if mean is None or std is None:
+        return "—"
+    return f"{_fmt(mean)} ± {_fmt(std)}"
+
+
+def _z(z: float | None, significant: bool | None) -> str:
+    if z is None or not math.isfinite(z):
+        return "—"
+    return f"**{z:+.1f}**" if significant else f"{z:+.1f}"
+
+
+def _simulation_section(sim: SimulationComparison, extended_name: str | None) -> list[str]:
+    """``extended_name``: the extended model's name, None when nothing was found."""
+    n = sim.replays
+    lines = ["", "## Simulation against measurement", "",
+             f"The simulator, calibrated to these runs, replays their temperature histories "
+             f"{n} times (different noise seeds); the paper model is refitted to each "
+             "replay as to the measured runs. For each statistic of the paper-model "
+             "residual: the measured value, the replays' mean ± standard deviation, and "
+             "z = (measured − mean)/std. **Bold** z: significant, |z| > "
+             f"{sim.z_threshold:.2f} — outside the 99.73 % prediction interval of one more "
+             f"replay (Student t with {n - 1} degrees of freedom, × √(1 + 1/{n})), so that a "
+             "right simulator marks a given statistic with probability 0.0027. Largest |z| "
+             "first."]
+    if extended_name is not None:
+        lines[-1] += (f" The extended columns replay the extended model ({extended_name}) "
+                      "with the same noise: does modelling the effects close the gap?")
+    sig = [m.statistic for m in sim.significant]
+    lines += ["", "Significant mismatches (paper model): "
+              + (", ".join(sig) if sig else "none") + "."]
+    header = "| statistic | measured | simulated (paper), mean ± std | z |"
+    rule = "|---|---|---|---|"
+    if extended_name is not None:
+        still = [m.statistic for m in sim.mismatch if m.extended_significant]
+        lines.append("Still significant with the extended model: "
+                     + (", ".join(still) if still else "none") + ".")
+        header += " simulated (extended), mean ± std | z (extended) |"
+        rule += "---|---|"
+    lines += ["", header, rule]
+    for m in sim.mismatch:
+        row = (f"| {m.statistic} | {_fmt(m.measured)} | {_pm(m.sim_mean, m.sim_std)} | "
+               f"{_z(m.z, m.significant)} |")
+        if extended_name is not None:
+            row += (f" {_pm(m.extended_mean, m.extended_std)} | "
+                    f"{_z(m.extended_z, m.extended_significant)} |")
+        lines.append(row)
+    if sim.omitted:
+        lines += ["", "Left out (see Notes): " + ", ".join(name for name, _ in sim.omitted)
+                  + "."]
+    lines += ["", "Simulator calibration: " + ", ".join(
+        f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}"
+        for k, v in sim.calibration.to_dict().items())]
+    return lines
 
 
 def write_report(d: Diagnosis, directory: str | Path) -> Path:
@@ -197,20 +254,8 @@ def write_report(d: Diagnosis, directory: str | Path) -> Path:
     for name, (ratio, improved, dbic) in d.selection.tried.items():
         lines.append(f"| {name} | {ratio:.3f} | {improved}/{len(d.prepared)} | {dbic:.1f} |")
     if d.simulation is not None:
-        sim = d.simulation
-        lines += ["", "## Simulation against measurement", "",
-                  "The simulator, calibrated to these runs, replays their temperature "
-                  "histories; statistics of the paper-model residual (largest mismatch "
-                  "first):", "",
-                  "| statistic | measured | simulated (paper) | simulated (extended) |",
-                  "|---|---|---|---|"]
-        for m in sim.mismatch:
-            ext = m.simulated_extended if m.simulated_extended is not None else math.nan
-            lines.append(f"| {m.statistic} | {_fmt(m.measured)} | {_fmt(m.simulated)} | "
-                         f"{_fmt(ext)} |")
-        lines += ["", "Simulator calibration: " + ", ".join(
-            f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}"
-            for k, v in sim.calibration.to_dict().items())]
+        lines += _simulation_section(d.simulation,
+                                     d.extended.name if d.extended.effects else None)
     if d.notes:
         lines += ["", "## Notes", ""] + [f"- {n}" for n in d.notes]
     lines += ["", "## Figures", ""] + [f"![{f}]({f})" for f in figures]

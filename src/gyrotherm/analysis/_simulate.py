@@ -18,6 +18,8 @@ Replay: each measured run's environment temperature (the logged chamber, or
 T + ΔT reconstructed from the readings) becomes a chamber profile with
 set-points every 10 s, realised without lag, bow or noise, at the run's
 sample rate (capped at 100 Hz: the diagnosis works on 1-s blocks).
+:func:`replay_noise` simulates with zero bias, so that one simulation per seed
+serves every model (:func:`replay` adds one model's bias to it).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from gyrotherm.analysis._effects import ExtendedModel, add_bias
 from gyrotherm.analysis._prep import Prepared, Readout
@@ -94,11 +97,61 @@ def calibrate(
     return SimCalibration(gyro, tau_from_chamber)
 
 
+@dataclass(frozen=True)
+class _ReplayProfile(ChamberProfile):
+    """A profile whose air follows its set-points exactly under a quiet chamber.
+
+    With ``ChamberModel(lag_s=0, bow_c=0, noise_c=0)``,
+    :meth:`ChamberProfile.realise` returns the linear interpolation of the
+    set-points and draws nothing from ``rng``; it gets there through a
+    bow loop over every ramp (zero here) that costs set-points × samples —
+    half of a replay's time. This returns the same array directly.
+    """
+
+    def realise(
+        self, time_s: NDArray[np.float64], model: ChamberModel, rng: np.random.Generator
+    ) -> NDArray[np.float64]:
+        if model.lag_s > 0 or model.bow_c != 0 or model.noise_c > 0:
+            return super().realise(time_s, model, rng)
+        return self.setpoint_c(time_s)
+
+
 def environment_c(p: Prepared) -> np.ndarray:
     """The environment temperature a run saw: the chamber log, else T + ΔT."""
     if p.chamber_c is not None:
         return p.chamber_c
     return p.temperature_c + p.delta_t_c
+
+
+def replay_noise(
+    runs: Sequence[Run],
+    prepared: Sequence[Prepared],
+    calibration: SimCalibration,
+    *,
+    axis: str,
+    seed: int = 0,
+) -> list[Run]:
+    """Simulate every run's temperature history with zero bias (noise, offsets and
+    quantisation only); run i uses seed ``seed·1000 + i``. Add a model's bias with
+    :func:`gyrotherm.analysis._effects.add_bias`."""
+    out = []
+    quiet_chamber = ChamberModel(lag_s=0.0, bow_c=0.0, noise_c=0.0)
+    for i, (run, p) in enumerate(zip(runs, prepared, strict=True)):
+        env = environment_c(p)
+        t = p.time_s - p.time_s[0]
+        pick = np.r_[np.arange(0, len(t), 10), len(t) - 1]
+        pick = np.unique(pick)
+        times = t[pick]
+        times[0] = 0.0
+        keep = np.r_[True, np.diff(times) > 0]
+        temps = np.clip(env[pick][keep], -100.0, 200.0)
+        profile = _ReplayProfile.from_pairs(list(zip(times[keep].tolist(), temps.tolist(),
+                                                     strict=True)))
+        rate = min(1.0 / float(np.median(np.diff(run.time_s))), MAX_SIM_RATE_HZ)
+        out.append(simulate(profile, name=f"sim-{run.name}", gyro=calibration.gyro,
+                            chamber=quiet_chamber, rate_hz=rate, seed=seed * 1000 + i,
+                            metadata={"replay_of": run.name}))
+    return out
 
 
 def replay(
@@ -111,22 +164,5 @@ def replay(
     seed: int = 0,
 ) -> list[Run]:
     """Simulate every run's temperature history with ``model`` as the bias."""
-    out = []
-    quiet_chamber = ChamberModel(lag_s=0.0, bow_c=0.0, noise_c=0.0)
-    for i, (run, p) in enumerate(zip(runs, prepared, strict=True)):
-        env = environment_c(p)
-        t = p.time_s - p.time_s[0]
-        pick = np.r_[np.arange(0, len(t), 10), len(t) - 1]
-        pick = np.unique(pick)
-        times = t[pick]
-        times[0] = 0.0
-        keep = np.r_[True, np.diff(times) > 0]
-        temps = np.clip(env[pick][keep], -100.0, 200.0)
-        profile = ChamberProfile.from_pairs(list(zip(times[keep].tolist(), temps.tolist(),
-                                                     strict=True)))
-        rate = min(1.0 / float(np.median(np.diff(run.time_s))), MAX_SIM_RATE_HZ)
-        sim = simulate(profile, name=f"sim-{run.name}", gyro=calibration.gyro,
-                       chamber=quiet_chamber, rate_hz=rate, seed=seed * 1000 + i,
-                       metadata={"replay_of": run.name})
-        out.append(add_bias(sim, model, axis))
-    return out
+    return [add_bias(sim, model, axis)
+            for sim in replay_noise(runs, prepared, calibration, axis=axis, seed=seed)]

@@ -19,12 +19,17 @@ For residuals e (each run's own mean removed: the switch-on offset):
   100, 1000 s (IEEE Std 952-1997), pooled over runs; the white part of the
   raw output is ``arw_deg_per_rth`` (from first differences at the sample rate);
 * ``offset_std_dps``: spread of the per-run offsets.
+
+Comparing a measured statistic m with n simulator replays (:func:`replay_spread`,
+:func:`z_score`, :func:`z_threshold`): z = (m − mean)/std over the replays, and
+m is significant when |z| > t_{n−1}(1 − p/2)·√(1 + 1/n) with p = 0.0027 — the
+measurement lies outside the 99.73 % prediction interval of one more replay.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,6 +40,20 @@ from gyrotherm.analysis._score import integrated_time
 FloatArray = NDArray[np.float64]
 ALLAN_TAUS_S = (1, 10, 100, 1000)
 RATE_THRESHOLD_C_PER_S = 0.002
+#: two-sided tail probability of a statistic marked significant (the 3σ of a Gaussian)
+SIGNIFICANCE_P = 0.0027
+#: what each statistic needs to be defined, for the notes on statistics left out
+STATISTIC_NEEDS = {
+    "residual_vs_temperature_dps": "a 2 °C temperature bin holding at least 30 s",
+    "heating_minus_cooling_dps": "a 2 °C temperature bin holding at least 30 s whose last "
+    "move was heating and at least 30 s whose last move was cooling",
+    "rate_sign_difference_dps": "at least 30 s with dT/dt > +0.002 °C/s and at least 30 s "
+    "with dT/dt < −0.002 °C/s",
+    "large_gradient_excess_dps": "a gradient |ΔT| that varies (its quartiles differ)",
+    "first_10min_dps": "at least 60 s within 600 s of power-on",
+    "correlation_time_s": "residuals that are not all equal",
+    "offset_std_dps": "at least 2 runs",
+}
 
 
 def allan_deviation(series: Sequence[FloatArray], m: int) -> float:
@@ -146,12 +165,44 @@ def gauss_markov_fit(residuals: Sequence[FloatArray], *, max_lag: int = 600) -> 
     return float(math.sqrt(math.exp(intercept))), tau
 
 
-def mismatch_order(measured: Mapping[str, float], simulated: Mapping[str, float]) -> list[str]:
-    """Statistic names ordered by normalised discrepancy |m − s| / (|m| + |s|), largest first."""
-    def score(name: str) -> float:
-        m, s = measured[name], simulated.get(name, math.nan)
-        if not (math.isfinite(m) and math.isfinite(s)):
-            return -1.0
-        return abs(m - s) / (abs(m) + abs(s) + 1e-12)
+def statistic_requirement(name: str) -> str:
+    """What the runs must hold for statistic ``name`` to be defined (else it is NaN)."""
+    if name.startswith("allan_deviation_"):
+        tau = int(name.removeprefix("allan_deviation_").removesuffix("s_dps"))
+        return f"a run of at least {2 * tau + 1} s"
+    return STATISTIC_NEEDS.get(name, "enough data")
 
-    return sorted(measured, key=score, reverse=True)
+
+def replay_spread(values: Sequence[float]) -> tuple[float, float, int]:
+    """Mean, sample standard deviation (ddof 1) and count of the finite ``values``
+    (NaN mean/std when fewer than 2 are finite)."""
+    v = np.asarray([x for x in values if math.isfinite(x)], dtype=np.float64)
+    if len(v) < 2:
+        return (float(v[0]) if len(v) else math.nan), math.nan, len(v)
+    return float(v.mean()), float(v.std(ddof=1)), len(v)
+
+
+def z_score(measured: float, mean: float, std: float) -> float:
+    """(measured − mean) / std, with std floored at 10⁻⁹ of the values' scale (and
+    10⁻³⁰) so that replays that all agree give a large finite |z| for a different
+    measurement and 0 for an equal one; NaN when any input is NaN."""
+    if not (math.isfinite(measured) and math.isfinite(mean) and math.isfinite(std)):
+        return math.nan
+    floor = max(1e-9 * max(abs(measured), abs(mean)), 1e-30)
+    return (measured - mean) / max(std, floor)
+
+
+def z_threshold(n_replays: int, p: float = SIGNIFICANCE_P) -> float:
+    """|z| beyond which a measured statistic is significant, given ``n_replays`` replays.
+
+    If the measurement were one more draw from the replays' distribution (normal,
+    mean and std unknown), (m − mean)/(std·√(1 + 1/n)) would follow Student's t with
+    n − 1 degrees of freedom; the threshold is the two-sided ``p`` quantile of that
+    (the 3σ of a Gaussian for the default p = 0.0027): t_{n−1}(1 − p/2)·√(1 + 1/n).
+    7.25 for n = 5, 4.80 for n = 8, → 3 as n → ∞. NaN for n < 2.
+    """
+    if n_replays < 2:
+        return math.nan
+    from scipy.stats import t as student_t
+
+    return float(student_t.ppf(1.0 - p / 2.0, n_replays - 1)) * math.sqrt(1.0 + 1.0 / n_replays)
