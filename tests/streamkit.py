@@ -25,9 +25,11 @@ from contextlib import contextmanager
 from typing import TypeVar
 
 import can
+import numpy as np
 import zenoh
 
 from gyrotherm.codecs import FrameEncoder, RateSample, Run, SignalMap, TemperatureSample
+from gyrotherm.compensation import Calibration, RunFeatures, features
 
 
 def run_frames(run: Run, encoder: FrameEncoder, *, period_s: float = 0.0) -> Iterator[can.Message]:
@@ -194,3 +196,18 @@ USER_SIGNAL_MAP = SignalMap(
     temperature_message="ImuTemp", temperature_signal="TDie",
 )
 
+
+
+def assert_offline_compensation(
+    rates_dps: list[tuple[float, float, float]], run: Run, calibration: Calibration
+) -> RunFeatures:
+    """The daemon's corrected rates (one per row, x y z, °/s) equal offline
+    compensation of ``run``: raw − F(T, ΔT) with T and ΔT from :func:`features`
+    (to 1e-9 °/s). Returns the offline features for further checks."""
+    got = np.array(rates_dps)
+    assert got.shape == (len(run), 3), got.shape
+    offline = features(run, calibration.estimator)
+    for j, axis in enumerate("xyz"):
+        bias, _ = calibration.bias_series(axis, offline.temperature_c, offline.delta_t_c)
+        np.testing.assert_allclose(got[:, j], run.rates_dps[axis] - bias, atol=1e-9)
+    return offline

@@ -6,14 +6,13 @@ import threading
 import uuid
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from gyrotherm.codecs import FrameEncoder, Run
-from gyrotherm.compensation import Calibration, features
+from gyrotherm.compensation import Calibration
 from gyrotherm.daemon import Daemon, RunSummary, parse_config
 from gyrotherm.sim import open_bus
-from streamkit import free_port, run_frames
+from streamkit import assert_offline_compensation, free_port, run_frames
 
 TIMEOUT_S = 20.0
 
@@ -73,11 +72,7 @@ def test_end_to_end_in_one_process(daemon_env, short_runs: list[Run],  # type: i
     assert summary.drops == {}
     # corrected rates equal offline compensation of the same run
     assert [r.seq for r in rates] == list(range(len(run)))
-    offline = features(run, stream_calibration.estimator)
-    got = np.array([r.rate_dps for r in rates])
-    for j, axis in enumerate("xyz"):
-        bias, _ = stream_calibration.bias_series(axis, offline.temperature_c, offline.delta_t_c)
-        np.testing.assert_allclose(got[:, j], run.rates_dps[axis] - bias, atol=1e-9)
+    assert_offline_compensation([r.rate_dps for r in rates], run, stream_calibration)
     assert info.calibration is not None
     assert info.calibration["model"]["name"] == "paper"
     assert info.calibration_id and info.health is not None

@@ -13,14 +13,12 @@ import sys
 import threading
 from pathlib import Path
 
-import numpy as np
-
 from gyrotherm.client import Subscriber
 from gyrotherm.codecs import FrameEncoder, Run
-from gyrotherm.compensation import Calibration, features
+from gyrotherm.compensation import Calibration
 from gyrotherm.sim import SocketcandServer
 from gyrotherm.sim._stream import frames_from_run, play
-from streamkit import free_port
+from streamkit import assert_offline_compensation, free_port
 
 TIMEOUT_S = 30.0
 
@@ -107,8 +105,4 @@ listen = ["tcp/127.0.0.1:{zport}"]
     assert published + dropped == received and dropped == 0
     # the corrected rates equal offline compensation of the same run
     assert [r.seq for r in rates] == list(range(len(run)))
-    offline = features(run, stream_calibration.estimator)
-    got = np.array([r.rate_dps for r in rates])
-    for j, axis in enumerate("xyz"):
-        bias, _ = stream_calibration.bias_series(axis, offline.temperature_c, offline.delta_t_c)
-        np.testing.assert_allclose(got[:, j], run.rates_dps[axis] - bias, atol=1e-9)
+    assert_offline_compensation([r.rate_dps for r in rates], run, stream_calibration)

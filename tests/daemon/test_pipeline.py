@@ -16,7 +16,7 @@ from gyrotherm.codecs._wire_decode import decode_rate, decode_state
 from gyrotherm.compensation import Calibration, features
 from gyrotherm.daemon import Pipeline
 from gyrotherm.sim import chamber_runs, frames_from_run
-from streamkit import RecordingSink, run_frames
+from streamkit import RecordingSink, assert_offline_compensation, run_frames
 
 
 def test_corrected_rates_equal_offline_compensation(
@@ -27,11 +27,8 @@ def test_corrected_rates_equal_offline_compensation(
     pipe = Pipeline(FrameDecoder(), sink, calibration=stream_calibration)
     for msg in run_frames(run, FrameEncoder()):
         pipe.process(msg, 1.0e9)
-    got = np.array([decode_rate(p).rate_dps for p in sink.rates])
-    offline = features(run, stream_calibration.estimator)
-    for j, axis in enumerate("xyz"):
-        bias, _ = stream_calibration.bias_series(axis, offline.temperature_c, offline.delta_t_c)
-        np.testing.assert_allclose(got[:, j], run.rates_dps[axis] - bias, atol=1e-9)
+    rates = [decode_rate(p).rate_dps for p in sink.rates]
+    offline = assert_offline_compensation(rates, run, stream_calibration)
     c = pipe.counters()
     assert c.frames_received == 2 * len(run) == c.frames_published
     assert c.drops == {}
@@ -57,12 +54,8 @@ def test_played_run_equals_offline_compensation_above_the_sensor_rate(
     pipe = Pipeline(FrameDecoder(), sink, calibration=stream_calibration)
     for msg in frames:
         pipe.process(msg, 1.0e9)
-    got = np.array([decode_rate(p).rate_dps for p in sink.rates])
-    assert len(got) == len(run)
-    offline = features(run, stream_calibration.estimator)
-    for j, axis in enumerate("xyz"):
-        bias, _ = stream_calibration.bias_series(axis, offline.temperature_c, offline.delta_t_c)
-        np.testing.assert_allclose(got[:, j], run.rates_dps[axis] - bias, atol=1e-9)
+    rates = [decode_rate(p).rate_dps for p in sink.rates]
+    offline = assert_offline_compensation(rates, run, stream_calibration)
     # the negative control: fusing every row (the old offline rule) is visibly different
     every_row = replace(stream_calibration.estimator, update_period_s=1e-9)
     if rate_hz > 10.0:
