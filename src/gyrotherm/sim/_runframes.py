@@ -158,25 +158,21 @@ class _RunFrames(FrameStream):
         j = 0
         for i, t in enumerate(times):
             if i == temp_rows[j]:
-                msg = message(timestamp=t, arbitration_id=t_id, is_extended_id=t_ext,
-                              data=temp_data[j], is_fd=t_fd)
+                yield from self._flagged(
+                    message(timestamp=t, arbitration_id=t_id, is_extended_id=t_ext,
+                            data=temp_data[j], is_fd=t_fd), saturated=temp_sat[j])
                 j += 1
-                if temp_sat[j - 1]:
-                    self.saturated += 1
-                    self.last_saturated = True
-                    yield msg
-                    self.last_saturated = False
-                else:
-                    yield msg
-            msg = message(timestamp=t, arbitration_id=r_id, is_extended_id=r_ext,
-                          data=rate_data[i], is_fd=r_fd)
-            if rate_sat[i]:
-                self.saturated += 1
-                self.last_saturated = True
-                yield msg
-                self.last_saturated = False
-            else:
-                yield msg
+            yield from self._flagged(
+                message(timestamp=t, arbitration_id=r_id, is_extended_id=r_ext,
+                        data=rate_data[i], is_fd=r_fd), saturated=rate_sat[i])
+
+    def _flagged(self, msg: can.Message, *, saturated: bool) -> Iterator[can.Message]:
+        """Yield ``msg``; a saturated one is counted and flagged while it is out."""
+        if saturated:
+            self.saturated += 1
+            self.last_saturated = True
+        yield msg
+        self.last_saturated = False
 
 
 def _row_error(run: Run, i: int, exc: DecodeError) -> DecodeError:
