@@ -80,6 +80,7 @@ import can
 import numpy as np
 
 from gyrotherm._zenoh import keys, open_session
+from gyrotherm.bus import FrameSource
 from gyrotherm.client import Subscriber
 from gyrotherm.codecs import (
     FrameDecoder,
@@ -90,7 +91,6 @@ from gyrotherm.codecs import (
     StateMessage,
     encode_rate,
 )
-from gyrotherm.sim import FrameSource
 
 VEHICLE = "bench"
 SENSOR = "imu0"

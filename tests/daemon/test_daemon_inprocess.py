@@ -8,10 +8,10 @@ from pathlib import Path
 
 import pytest
 
+from gyrotherm.bus import open_bus
 from gyrotherm.codecs import FrameEncoder, Run
 from gyrotherm.compensation import Calibration
 from gyrotherm.daemon import Daemon, RunSummary, parse_config
-from gyrotherm.sim import open_bus
 from streamkit import assert_offline_compensation, free_port, run_frames
 
 TIMEOUT_S = 20.0

@@ -11,11 +11,11 @@ from pathlib import Path
 
 import can
 
+from gyrotherm.bus import FrameSource, open_bus
 from gyrotherm.client import Subscriber
 from gyrotherm.codecs import FrameEncoder, Run, StatusFlags
 from gyrotherm.compensation import Calibration
 from gyrotherm.daemon import Daemon, Notifier, parse_config
-from gyrotherm.sim import FrameSource, open_bus
 from streamkit import free_port, run_frames
 
 TIMEOUT_S = 20.0

@@ -25,12 +25,12 @@ import numpy as np
 import pytest
 
 from gyrotherm import ConfigError, DecodeError, RunFileError
+from gyrotherm.bus import FrameSink
 from gyrotherm.cli._stream import main as stream_main
 from gyrotherm.cli._stream import register
 from gyrotherm.codecs import Run
 from gyrotherm.codecs._can import FrameDecoder, RateSample, TemperatureSample
 from gyrotherm.codecs._canenc import FrameEncoder
-from gyrotherm.sim._bus import FrameSink
 from gyrotherm.sim._experiment import chamber_runs
 from gyrotherm.sim._stream import (
     CandumpSink,

@@ -35,8 +35,8 @@ from contextlib import contextmanager
 from types import FrameType
 
 from gyrotherm._errors import ConfigError, GyrothermError
+from gyrotherm.bus import FrameSink, open_bus
 from gyrotherm.codecs import DEFAULT_DBC_PATH, FrameEncoder, read_run
-from gyrotherm.sim._bus import FrameSink, open_bus
 from gyrotherm.sim._experiment import chamber_runs
 from gyrotherm.sim._socketcand import SocketcandServer
 from gyrotherm.sim._stream import (

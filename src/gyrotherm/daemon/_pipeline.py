@@ -14,7 +14,9 @@ sum(drops.values())`` at all times. Reasons: the decoder's reject reasons;
 reuses its ``seq``); ``no_subscriber`` (the sink sent the message but no
 subscriber matched it — router or link down, or nobody subscribed — so nobody
 received it; its ``seq`` is spent, which is how a subscriber that comes back
-sees the gap); ``bad_timestamp`` (a non-finite frame time stamp);
+sees the gap); ``bad_timestamp`` (a non-finite frame time stamp); the
+``reason`` of a :class:`gyrotherm.bus.TransportItem` (something read from the
+link that is not a frame, e.g. ``transport_malformed``);
 ``internal_error`` (an unexpected exception while processing the frame: logged,
 and the stream goes on).
 Before the first temperature frame rates are published uncorrected
@@ -30,6 +32,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from gyrotherm._errors import PublishError
+from gyrotherm.bus import TransportItem
 from gyrotherm.codecs import FrameDecoder, RateSample, Rejection, RejectReason, TemperatureSample
 from gyrotherm.codecs._wire import (
     HealthMessage,
@@ -140,6 +143,9 @@ class Pipeline:
         unexpected exception, logged), and the stream goes on.
         """
         self._received += 1
+        if type(msg) is TransportItem:  # read from the link, but not a frame
+            self._drops[msg.reason] += 1
+            return
         try:
             result = self._decoder.decode(msg)
             kind = type(result)

@@ -33,6 +33,7 @@ import zenoh
 
 from gyrotherm._errors import GyrothermError
 from gyrotherm._zenoh import keys, session_config
+from gyrotherm.bus import FrameSource, open_bus
 from gyrotherm.codecs import FrameDecoder
 from gyrotherm.codecs._wire import (
     CalibrationInfo,
@@ -46,7 +47,6 @@ from gyrotherm.daemon._config import DaemonConfig
 from gyrotherm.daemon._pipeline import Pipeline
 from gyrotherm.daemon._sdnotify import Notifier
 from gyrotherm.daemon._sink import _ZenohSink
-from gyrotherm.sim import FrameSource, open_bus
 
 log = logging.getLogger("gyrotherm.daemon")
 

@@ -1,6 +1,6 @@
 """Simulator of the temperature-chamber experiment and of a gyro on a CAN bus."""
 
-from gyrotherm.sim._bus import INTERFACES, BusAdapter, FrameSink, FrameSource, open_bus
+from gyrotherm.bus import INTERFACES, BusAdapter, FrameSink, FrameSource, open_bus
 from gyrotherm.sim._chamber import ChamberModel, ChamberProfile, SetPoint
 from gyrotherm.sim._experiment import (
     PAPER_HEATING_MIN,

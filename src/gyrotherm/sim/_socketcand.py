@@ -38,7 +38,7 @@ from typing import Self
 import can
 
 from gyrotherm._errors import ConfigError, DecodeError
-from gyrotherm.sim._bus import FrameSink, FrameSource
+from gyrotherm.bus import FrameSink, FrameSource
 from gyrotherm.sim._socketcand_cli import main as main
 from gyrotherm.sim._socketcand_client import _BATCH_FRAMES as _BATCH_FRAMES
 from gyrotherm.sim._socketcand_client import _JOIN_TIMEOUT_S as _JOIN_TIMEOUT_S

@@ -27,9 +27,9 @@ from typing import IO, Protocol
 import can
 
 from gyrotherm._errors import ConfigError
+from gyrotherm.bus import FrameSink
 from gyrotherm.codecs._candump import format_candump_line
 from gyrotherm.codecs._canmap import EXTENDED_KEY
-from gyrotherm.sim._bus import FrameSink
 from gyrotherm.sim._framepack import _encode_rows as _encode_rows
 from gyrotherm.sim._framepack import _pack as _pack
 from gyrotherm.sim._framepack import _raw_values as _raw_values

@@ -10,7 +10,7 @@ import can
 import pytest
 
 from gyrotherm import ConfigError
-from gyrotherm.sim._bus import BusAdapter, FrameSink, FrameSource, open_bus
+from gyrotherm.bus import BusAdapter, FrameSink, FrameSource, open_bus
 from gyrotherm.sim._socketcand import SocketcandServer
 from streamkit import dead_port
 

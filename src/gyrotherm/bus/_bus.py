@@ -1,5 +1,8 @@
 """Frame sources and sinks: the one interface real CAN buses and the simulator share.
 
+This subpackage is the vehicle path's only door to a bus: the daemon and the
+simulator both use it, and it imports nothing of :mod:`gyrotherm.sim`.
+
 Contract (python-can's :class:`can.BusABC` shape, with units in the names):
 
 * :class:`FrameSink` ``.send(msg, timeout_s=None)`` hands one classic CAN frame
@@ -8,6 +11,10 @@ Contract (python-can's :class:`can.BusABC` shape, with units in the names):
 * :class:`FrameSource` ``.recv(timeout_s=None)`` returns the next frame, or
   ``None`` once ``timeout_s`` seconds passed without one (``None`` waits
   forever, ``0`` polls). Iterating a source yields frames until it is shut down.
+  A source that reads a byte stream (socketcand) may also return a
+  :class:`TransportItem`: something that arrived on the link but is not a frame
+  (malformed text, a server's error line). Consumers count it (the daemon drops
+  it by its ``reason``) and go on; it is never raised.
 * Both have an idempotent ``shutdown()``, an ``is_shutdown`` property, and are
   context managers that shut down on exit.
 
@@ -27,6 +34,7 @@ import socket
 import threading
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
+from dataclasses import dataclass
 from types import TracebackType
 from typing import Any, Self
 
@@ -57,6 +65,19 @@ def _quiet_socketcand_client() -> None:
     logger = logging.getLogger(_SOCKETCAND_LOGGER)
     if not any(isinstance(f, _DropPartialReadWarnings) for f in logger.filters):
         logger.addFilter(_DropPartialReadWarnings())
+
+
+@dataclass(frozen=True, slots=True)
+class TransportItem:
+    """An item read from a bus link that is not a CAN frame.
+
+    ``reason`` is a drop reason (a short snake_case word such as
+    ``transport_malformed``) that the daemon counts; ``detail`` says what was
+    wrong and quotes (a bounded part of) the offending bytes, for a rate-limited log.
+    """
+
+    reason: str
+    detail: str
 
 
 class _Endpoint(ABC):
@@ -95,14 +116,16 @@ class FrameSource(_Endpoint):
     """Something classic CAN frames can be received from."""
 
     @abstractmethod
-    def recv(self, timeout_s: float | None = None) -> can.Message | None:
-        """Next frame, or ``None`` after ``timeout_s`` seconds (``None``: wait forever)."""
+    def recv(self, timeout_s: float | None = None) -> can.Message | TransportItem | None:
+        """Next frame (or non-frame :class:`TransportItem`), or ``None`` after
+        ``timeout_s`` seconds (``None``: wait forever)."""
 
     def __iter__(self) -> Iterator[can.Message]:
-        """Yield frames as they arrive until the source is shut down."""
+        """Yield frames as they arrive until the source is shut down (transport
+        items are skipped)."""
         while True:
             msg = self.recv(timeout_s=_ITER_POLL_S)
-            if msg is not None:
+            if isinstance(msg, can.Message):
                 yield msg
             elif self.is_shutdown:
                 return
