@@ -30,3 +30,8 @@ class CalibrationError(GyrothermError):
 
 class PublishError(GyrothermError):
     """Publishing to Zenoh failed."""
+
+
+class BusError(GyrothermError):
+    """A CAN bus link failed at run time (handshake timeout, connection lost):
+    names the interface, the channel and the peer."""

@@ -120,6 +120,13 @@ class FrameSource(_Endpoint):
         """Next frame (or non-frame :class:`TransportItem`), or ``None`` after
         ``timeout_s`` seconds (``None``: wait forever)."""
 
+    @property
+    def link_lost(self) -> bool:
+        """True once the source knows its link is gone (a stream peer closed the
+        connection); the owner should shut it down and reopen. Buses without a
+        link to lose (virtual, SocketCAN) always say False."""
+        return False
+
     def __iter__(self) -> Iterator[can.Message]:
         """Yield frames as they arrive until the source is shut down (transport
         items are skipped)."""
