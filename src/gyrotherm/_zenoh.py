@@ -12,6 +12,23 @@ Safe defaults (no ``config_file``): zenoh's own defaults make a peer listen on
 
 With ``config_file`` the user's JSON5 file is loaded unchanged (deployments).
 
+The daemon's own session (``session_config(..., protect=keys(vehicle, sensor))``,
+either way) additionally gets an access-control rule, :func:`protect_keys`: zenoh
+drops every ``put``, ``delete``, ``declare_queryable``, ``reply`` and
+``liveliness_token`` on ``gyrotherm/<vehicle>/<sensor>/**`` that arrives from any
+other session (ingress, all remote faces), so nobody can publish or answer
+calibration queries on the daemon's keys *through* the daemon's session, whatever
+mode they connect in. The daemon's own publications are local, not ingress, and
+subscriptions and queries stay allowed. zenoh matches a rule's key expression by
+inclusion, so a forged message on a *wildcard* key (``gyrotherm/bench/*/rate``,
+``**``) passes this rule: :class:`gyrotherm.client.Subscriber` accepts only samples
+and replies on its exact keys, which such messages never are. Routers must enforce
+their own ACL (deploy/zenoh/router.json5, acl-router.json5; docs/operations.md,
+"Threat model").
+
+Zenoh's error messages end with Rust source locations (``at /root/.cargo/…/x.rs:86.``);
+:func:`zenoh_error_text` strips them before they reach a user.
+
 Key expressions: ``gyrotherm/<vehicle>/<sensor>/{rate,state,health,calibration}``;
 vehicle and sensor names are 1-64 characters of ``[A-Za-z0-9_.-]``, not starting
 with ``.`` or ``-`` (no ``/``, wildcards ``*``, ``$``, ``#``, ``?``, spaces...).
@@ -21,11 +38,12 @@ from __future__ import annotations
 
 import ipaddress
 import json
+import logging
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import zenoh
 
@@ -35,6 +53,18 @@ Mode = Literal["peer", "client", "router"]
 MODES: tuple[Mode, ...] = ("peer", "client", "router")
 KEY_PREFIX = "gyrotherm"
 DEFAULT_CONNECT = ("tcp/127.0.0.1:7447",)
+
+#: What no other session may send on the daemon's keys (zenoh ACL message names).
+PROTECTED_MESSAGES = ("put", "delete", "declare_queryable", "reply", "liveliness_token")
+#: ids of the access-control entries :func:`protect_keys` adds.
+ACL_RULE_ID = "gyrotherm-protect-keys"
+ACL_SUBJECT_ID = "gyrotherm-any-remote"
+ACL_POLICY_ID = "gyrotherm-protect-keys"
+#: The password shipped in deploy/zenoh/client-of-router.json5: refused, so a file
+#: installed without setting a real password never authenticates anybody.
+PLACEHOLDER_PASSWORD = "REPLACE-WITH-A-SECRET"
+
+log = logging.getLogger("gyrotherm.zenoh")
 
 _NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}")
 _ENDPOINT = re.compile(r"(?P<proto>[A-Za-z0-9+-]+)/(?P<addr>[^?#]+)(?P<rest>[?#].*)?")
@@ -99,11 +129,135 @@ def _check_endpoints(endpoints: Sequence[str], what: str) -> list[str]:
     return out
 
 
-def _insert(config: zenoh.Config, key: str, value: object) -> None:
+_RUST_LOCATION = re.compile(
+    r"\s*(?:\bat\s+[^\s()]+?\.rs:\d+(?::\d+)?\.?"  # ... at /root/.cargo/.../config.rs:86.
+    r"|\(\s*[^\s()]+?\.rs:\d+(?::\d+)?\s*\))"  # (.../src/x.rs:10:5)
+)
+_JSON5_MESSAGE = re.compile(
+    r'(?:Json5Err\()?Message \{ msg: "(?P<msg>(?:[^"\\]|\\.)*)", location: '
+    r"(?:Some\(Location \{ line: (?P<line>\d+), column: (?P<col>\d+) \}\)|None) \}\)?"
+)
+
+
+def zenoh_error_text(exc: BaseException | str) -> str:
+    """A zenoh error's message without Rust source locations and debug wrappers.
+
+    ``'Json5Err(Message { msg: "unknown variant `server`", location: Some(Location
+    { line: 1, column: 1 }) }) at /root/.cargo/.../config.rs:86.'`` becomes
+    ``'unknown variant `server` (line 1, column 1)'``.
+    """
+    text = _RUST_LOCATION.sub("", str(exc))
+
+    def plain(m: re.Match[str]) -> str:
+        msg = m["msg"].replace('\\"', '"').replace("\\\\", "\\")
+        return f"{msg} (line {m['line']}, column {m['col']})" if m["line"] else msg
+
+    text = _JSON5_MESSAGE.sub(plain, text)
+    text = re.sub(r'^Str\("(.*)"\)$', r"\1", text.strip())
+    return text.strip().rstrip(".").strip() or type(exc).__name__
+
+
+def _insert(config: zenoh.Config, key: str, value: object, source: str = "zenoh config") -> None:
     try:
         config.insert_json5(key, json.dumps(value))
     except zenoh.ZError as exc:
-        raise ConfigError(f"zenoh config {key} = {value!r} rejected: {exc}") from exc
+        raise ConfigError(
+            f"{source}: {key} = {value!r} rejected: {zenoh_error_text(exc)}"
+        ) from exc
+
+
+def _get(config: zenoh.Config, key: str, source: str) -> Any:
+    try:
+        return json.loads(config.get_json(key))
+    except zenoh.ZError as exc:
+        raise ConfigError(f"{source}: cannot read {key}: {zenoh_error_text(exc)}") from exc
+
+
+def _endpoints_for_mode(config: zenoh.Config, key: str, source: str) -> list[str]:
+    value = _get(config, key, source)
+    if isinstance(value, Mapping):
+        value = value.get(_get(config, "mode", source) or "peer", [])
+    return [str(v) for v in value or []]
+
+
+def _is_multicast(endpoint: str) -> bool:
+    m = _ENDPOINT.fullmatch(endpoint)
+    if m is None:
+        return False
+    try:
+        return ipaddress.ip_address(_host_of(m["addr"])).is_multicast
+    except ValueError:
+        return False
+
+
+def protect_keys(config: zenoh.Config, sensor_keys: KeyExprs, *, source: str) -> zenoh.Config:
+    """Add the daemon's access-control rule to ``config`` (in place) and return it.
+
+    Every remote session (any mode, any link, any identity) is denied *ingress*
+    :data:`PROTECTED_MESSAGES` on ``gyrotherm/<vehicle>/<sensor>/**``; everything
+    else keeps the config's own permissions. With ``access_control`` disabled
+    (also zenoh's default when the file has none) the block becomes exactly this
+    rule with ``default_permission: "allow"``. A file with its own *enabled*
+    access control gets the rule, its subject and policy merged in: zenoh lets a
+    deny rule win over any allow, so the merge can only take rights away, and only
+    these; the file's ``default_permission`` and rules are kept. ids already used
+    by the file, and multicast transports (zenoh applies no ACL to them), are
+    refused with a ConfigError naming ``source``.
+    """
+    for key in ("listen/endpoints", "connect/endpoints"):
+        for ep in _endpoints_for_mode(config, key, source):
+            if _is_multicast(ep):
+                raise ConfigError(
+                    f"{source}: {key} {ep!r} is a multicast transport: zenoh's access "
+                    "control does not apply to it, so anyone on that group could publish "
+                    "as the daemon; use unicast endpoints"
+                )
+    prefix = sensor_keys.rate.rsplit("/", 1)[0]
+    rule = {
+        "id": ACL_RULE_ID,
+        "permission": "deny",
+        "flows": ["ingress"],
+        "messages": list(PROTECTED_MESSAGES),
+        "key_exprs": [f"{prefix}/**"],
+    }
+    subject = {"id": ACL_SUBJECT_ID}  # no property: matches every remote session
+    policy = {"id": ACL_POLICY_ID, "rules": [ACL_RULE_ID], "subjects": [ACL_SUBJECT_ID]}
+    acl = _get(config, "access_control", source)
+    if not isinstance(acl, Mapping) or not acl.get("enabled"):
+        merged: dict[str, Any] = {
+            "enabled": True,
+            "default_permission": "allow",
+            "rules": [rule],
+            "subjects": [subject],
+            "policies": [policy],
+        }
+        how = "added"
+    else:
+        merged = dict(acl)
+        for field, entry in (("rules", rule), ("subjects", subject), ("policies", policy)):
+            existing = list(merged.get(field) or [])
+            taken = [e.get("id") for e in existing if isinstance(e, Mapping)]
+            if entry["id"] in taken:
+                raise ConfigError(
+                    f"{source}: access_control/{field} already has id {entry['id']!r}, "
+                    "which gyrotherm reserves for the rule protecting its keys: rename it"
+                )
+            merged[field] = [*existing, entry]
+        how = f"merged into the file's access_control (default_permission " \
+              f"{merged.get('default_permission', 'deny')!r} kept)"
+    _insert(config, "access_control", merged, source)
+    log.info("zenoh access control: ingress %s on %s/** denied from every other session "
+             "(%s, %s)", "/".join(PROTECTED_MESSAGES), prefix, source, how)
+    return config
+
+
+def _check_password(config: zenoh.Config, source: str) -> None:
+    if _get(config, "transport/auth/usrpwd/password", source) == PLACEHOLDER_PASSWORD:
+        raise ConfigError(
+            f"{source}: transport/auth/usrpwd/password is still the shipped placeholder "
+            f"{PLACEHOLDER_PASSWORD!r}: set the password the router's dictionary file "
+            "has for this user (docs/operations.md, \"Threat model\")"
+        )
 
 
 def session_config(
@@ -113,12 +267,15 @@ def session_config(
     connect: Sequence[str] = (),
     config_file: str | Path | None = None,
     allow_any_interface: bool = False,
+    protect: KeyExprs | None = None,
 ) -> zenoh.Config:
     """Build a :class:`zenoh.Config` with safe defaults (module docstring).
 
     ``mode`` defaults to ``"peer"``. A client needs at least one ``connect``
     endpoint and cannot listen. ``config_file`` excludes every other option: the
-    file is passed to zenoh unchanged.
+    file is passed to zenoh unchanged, except that a ``transport/auth/usrpwd``
+    password still equal to :data:`PLACEHOLDER_PASSWORD` is refused. ``protect``
+    (the daemon's keys) adds the access-control rule of :func:`protect_keys`.
     """
     if config_file is not None:
         if mode is not None or listen or connect or allow_any_interface:
@@ -126,10 +283,13 @@ def session_config(
                 f"config file {str(config_file)!r} given together with mode/listen/connect: "
                 "put these settings in the file"
             )
+        source = f"zenoh config file {str(config_file)!r}"
         try:
-            return zenoh.Config.from_file(str(config_file))
+            config = zenoh.Config.from_file(str(config_file))
         except zenoh.ZError as exc:
-            raise ConfigError(f"zenoh config file {str(config_file)!r}: {exc}") from exc
+            raise ConfigError(f"{source}: {zenoh_error_text(exc)}") from exc
+        _check_password(config, source)
+        return config if protect is None else protect_keys(config, protect, source=source)
     mode = "peer" if mode is None else mode
     if mode not in MODES:
         raise ConfigError(f"zenoh mode {mode!r} is invalid: expected one of {MODES}")
@@ -152,6 +312,9 @@ def session_config(
     _insert(config, "scouting/gossip/enabled", False)
     _insert(config, "listen/endpoints", listen_eps)
     _insert(config, "connect/endpoints", connect_eps)
+    if protect is not None:
+        where = f"zenoh mode={mode} listen={listen_eps} connect={connect_eps}"
+        protect_keys(config, protect, source=where)
     return config
 
 
@@ -181,4 +344,6 @@ def open_session(
         where = f"config file {str(config_file)!r}" if config_file else (
             f"mode={mode or 'peer'} listen={list(listen)} connect={list(connect)}"
         )
-        raise ConfigError(f"cannot open zenoh session ({where}): {exc}") from exc
+        raise ConfigError(
+            f"cannot open zenoh session ({where}): {zenoh_error_text(exc)}"
+        ) from exc

@@ -200,6 +200,8 @@ class Subscriber:
             raise
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
+        # exact keys only: a sample on a wildcard key is never the daemon's (see
+        # query_calibration)
         stream = self._by_key.get(str(sample.key_expr))
         if stream is not None:
             stream.on_sample(sample)
@@ -243,17 +245,24 @@ class Subscriber:
     def query_calibration(self, *, timeout_s: float = 2.0) -> CalibrationInfo:
         """Ask the daemon's ``…/calibration`` queryable for its calibration and health.
 
-        Raises TimeoutError when nothing answers within ``timeout_s``,
-        CalibrationError when the daemon replies with an error, DecodeError on a
-        malformed reply.
+        Only a reply on exactly ``…/calibration`` counts: the daemon replies on that
+        key, and a reply on a wildcard key (``gyrotherm/*/…``, ``**``) passes the
+        daemon's access control, which matches keys by inclusion (docs/operations.md,
+        "Threat model"). Raises TimeoutError when no such reply arrives within
+        ``timeout_s``, CalibrationError when only error replies came, DecodeError on
+        a malformed reply.
         """
         replies = self._session.get(self.keys.calibration, timeout=timeout_s)
+        error: str | None = None
         for reply in replies:
             if reply.ok is not None:
-                return decode_calibration_info(reply.ok.payload.to_bytes())
+                if str(reply.ok.key_expr) == self.keys.calibration:
+                    return decode_calibration_info(reply.ok.payload.to_bytes())
+                continue
             err = reply.err
-            text = err.payload.to_bytes().decode("utf-8", "replace") if err else "?"
-            raise CalibrationError(f"{self.keys.calibration}: daemon replied with error: {text}")
+            error = err.payload.to_bytes().decode("utf-8", "replace") if err else "?"
+        if error is not None:
+            raise CalibrationError(f"{self.keys.calibration}: daemon replied with error: {error}")
         raise TimeoutError(f"{self.keys.calibration}: no reply within {timeout_s} s")
 
     def close(self) -> None:

@@ -144,8 +144,10 @@ class Daemon:
         decoder = FrameDecoder(cfg.can.dbc, cfg.can.signals,
                                on_counter_jump=cfg.can.on_counter_jump)  # type: ignore[arg-type]
         z = cfg.zenoh
-        zconf = (session_config(config_file=z.config_file) if z.config_file else
-                 session_config(mode=z.mode, listen=z.listen, connect=z.connect))  # type: ignore[arg-type]
+        zconf = (session_config(config_file=z.config_file, protect=keys(cfg.vehicle, cfg.sensor))
+                 if z.config_file else
+                 session_config(mode=z.mode, listen=z.listen, connect=z.connect,  # type: ignore[arg-type]
+                                protect=keys(cfg.vehicle, cfg.sensor)))
         with contextlib.ExitStack() as stack:
             # every resource is released in reverse order, whatever fails later
             self._bus = source or self._open_bus()
