@@ -7,13 +7,24 @@ import json
 import os
 import socket
 from pathlib import Path
+from typing import Any
 
 import pytest
 import zenoh
 
 import streamkit
 from gyrotherm import ConfigError
-from gyrotherm._zenoh import is_any_interface, keys, open_session, session_config
+from gyrotherm._zenoh import (
+    ACL_POLICY_ID,
+    ACL_RULE_ID,
+    ACL_SUBJECT_ID,
+    _insert,
+    is_any_interface,
+    keys,
+    open_session,
+    session_config,
+    zenoh_error_text,
+)
 from streamkit import dead_port, open_ephemeral, retry_on_address_in_use
 
 
@@ -240,3 +251,145 @@ def test_client_mode_without_router_fails_cleanly() -> None:
         ConfigError, match=r"cannot open zenoh session \(mode=client"
     ):
         open_session(mode="client", connect=[f"tcp/127.0.0.1:{port}"])
+
+
+# ------------------------------------------------------------------ error messages
+@pytest.mark.parametrize(
+    ("raw", "clean"),
+    [
+        ('Json5Err(Message { msg: "unknown variant `server`", location: Some(Location { '
+         'line: 1, column: 1 }) }) at /root/.cargo/git/checkouts/zenoh-9c5/cc8/zenoh/src/api/'
+         'config.rs:86.', "unknown variant `server` (line 1, column 1)"),
+        ("No such file or directory (os error 2) at /root/.cargo/registry/src/index/"
+         "zenoh-config-1.10.2/src/lib.rs:1507.", "No such file or directory (os error 2)"),
+        ("Access control not enabled due to: Found empty rule id at /x/authorization.rs:321. "
+         "at /x/access_control.rs:711.", "Access control not enabled due to: Found empty rule id"),
+        ("link failed (/home/u/src/zenoh/io/link.rs:10:5): refused", "link failed: refused"),
+        ('Str("unknown key") at /r/config.rs:86.', "unknown key"),
+        ("plain message", "plain message"),
+    ],
+)  # fmt: skip
+def test_zenoh_error_text_strips_rust_locations(raw: str, clean: str) -> None:
+    assert zenoh_error_text(raw) == clean
+
+
+def _no_rust(text: str) -> None:
+    assert ".rs:" not in text and ".cargo" not in text, text
+
+
+@pytest.mark.parametrize(
+    ("content", "reason"),
+    [
+        ("{ mode: 'server' }", r"unknown variant `server`.*\(line 1, column \d+\)"),
+        ("{ listen: { endpoints: 5 } }", r"invalid type: integer `5`"),
+        ("{ mode: 'peer', ", r"expected identifier or string \(line 1, column 17\)"),
+    ],
+)  # fmt: skip
+def test_bad_config_file_error_names_the_file_without_rust_paths(
+    tmp_path: Path, content: str, reason: str
+) -> None:
+    path = tmp_path / "zenoh.json5"
+    path.write_text(content)
+    with pytest.raises(ConfigError, match=rf"zenoh config file '{path}': .*{reason}") as info:
+        session_config(config_file=path)
+    _no_rust(str(info.value))
+    with pytest.raises(ConfigError, match=r"missing.json5': No such file") as info:
+        session_config(config_file=tmp_path / "missing.json5")
+    _no_rust(str(info.value))
+
+
+def test_rejected_value_and_failed_open_carry_no_rust_paths(tmp_path: Path) -> None:
+    config = zenoh.Config()
+    with pytest.raises(ConfigError, match=r"demo: mode = 'server' rejected: unknown variant") as e:
+        _insert(config, "mode", "server", "demo")
+    _no_rust(str(e.value))
+    # zenoh checks the access control only when the session opens
+    path = tmp_path / "zenoh.json5"
+    path.write_text(json.dumps({
+        "mode": "peer", "listen": {"endpoints": []},
+        "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": False}},
+        "access_control": {"enabled": True, "default_permission": "allow",
+                           "rules": [{"id": " ", "permission": "deny", "messages": ["put"],
+                                      "key_exprs": ["a/**"]}],
+                           "subjects": [{"id": "s"}], "policies": [{"rules": [" "],
+                                                                     "subjects": ["s"]}]},
+    }))  # fmt: skip
+    with pytest.raises(ConfigError, match=r"cannot open zenoh session \(config file .*: "
+                                          r"Access control not enabled due to: Found empty rule id"
+                       ) as e:  # fmt: skip
+        open_session(config_file=path)
+    _no_rust(str(e.value))
+    with dead_port() as port, pytest.raises(ConfigError, match=r"Unable to connect") as e:
+        open_session(mode="client", connect=[f"tcp/127.0.0.1:{port}"])
+    _no_rust(str(e.value))
+
+
+# ------------------------------------------------------------------ the daemon's ACL rule
+def _acl(config: zenoh.Config) -> dict[str, Any]:
+    acl: dict[str, Any] = json.loads(config.get_json("access_control"))
+    return acl
+
+
+def test_protect_adds_an_ingress_deny_rule_for_the_sensor_keys() -> None:
+    k = keys("veh1", "imu0")
+    assert _acl(session_config())["enabled"] is False  # only the daemon's session gets it
+    acl = _acl(session_config(listen=["tcp/127.0.0.1:0"], protect=k))
+    assert acl["enabled"] is True and acl["default_permission"] == "allow"
+    (rule,) = acl["rules"]
+    assert rule["permission"] == "deny" and rule["flows"] == ["ingress"]
+    assert set(rule["messages"]) == {"put", "delete", "declare_queryable", "reply",
+                                     "liveliness_token"}  # fmt: skip
+    assert rule["key_exprs"] == ["gyrotherm/veh1/imu0/**"]
+    (subject,) = acl["subjects"]
+    assert {key for key, value in subject.items() if value is not None} == {"id"}  # everyone
+    assert acl["policies"] == [{"id": ACL_POLICY_ID, "rules": [ACL_RULE_ID],
+                                "subjects": [ACL_SUBJECT_ID]}]  # fmt: skip
+    with open_session(listen=["tcp/127.0.0.1:0"]) as _, zenoh.open(
+        session_config(listen=["tcp/127.0.0.1:0"], protect=k)
+    ) as protected:  # zenoh accepts the rule
+        assert not protected.is_closed()
+
+
+def _file(tmp_path: Path, **extra: Any) -> Path:
+    path = tmp_path / "zenoh.json5"
+    path.write_text(json.dumps({
+        "mode": "peer", "listen": {"endpoints": ["tcp/127.0.0.1:0"]},
+        "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": False}}, **extra}))
+    return path
+
+
+def test_protect_merges_into_a_files_own_access_control(tmp_path: Path) -> None:
+    own = {"enabled": True, "default_permission": "deny",
+           "rules": [{"id": "mine", "permission": "allow", "flows": ["ingress", "egress"],
+                      "messages": ["put", "declare_subscriber"], "key_exprs": ["gyrotherm/**"]}],
+           "subjects": [{"id": "lan", "interfaces": ["lo"]}],
+           "policies": [{"id": "p", "rules": ["mine"], "subjects": ["lan"]}]}  # fmt: skip
+    config = session_config(config_file=_file(tmp_path, access_control=own),
+                            protect=keys("veh1", "imu0"))
+    acl = _acl(config)
+    assert acl["default_permission"] == "deny"  # the file's own
+    assert [r["id"] for r in acl["rules"]] == ["mine", ACL_RULE_ID]
+    assert [s["id"] for s in acl["subjects"]] == ["lan", ACL_SUBJECT_ID]
+    assert [p["id"] for p in acl["policies"]] == ["p", ACL_POLICY_ID]
+    zenoh.open(config).close()
+    # a disabled block is replaced (enabling it would apply its default "deny" to all)
+    off = dict(own, enabled=False)
+    acl = _acl(session_config(config_file=_file(tmp_path, access_control=off),
+                              protect=keys("veh1", "imu0")))
+    assert acl["default_permission"] == "allow" and [r["id"] for r in acl["rules"]] == [
+        ACL_RULE_ID]  # fmt: skip
+
+
+def test_protect_refuses_reserved_ids_and_multicast_transports(tmp_path: Path) -> None:
+    own = {"enabled": True, "default_permission": "allow",
+           "rules": [{"id": ACL_RULE_ID, "permission": "deny", "messages": ["put"],
+                      "key_exprs": ["x/**"]}],
+           "subjects": [{"id": "s"}], "policies": [{"rules": [ACL_RULE_ID], "subjects": ["s"]}]}
+    path = _file(tmp_path, access_control=own)
+    with pytest.raises(ConfigError, match=rf"zenoh.json5'.*rules already has id '{ACL_RULE_ID}'"):
+        session_config(config_file=path, protect=keys("veh1", "imu0"))
+    session_config(config_file=path)  # without protect the file passes through unchanged
+    path = _file(tmp_path, connect={"endpoints": ["udp/224.0.0.225:7448"]})
+    with pytest.raises(ConfigError, match=r"connect/endpoints 'udp/224.0.0.225:7448' is a "
+                                          r"multicast transport"):  # fmt: skip
+        session_config(config_file=path, protect=keys("veh1", "imu0"))

@@ -138,6 +138,8 @@ _JSON5_MESSAGE = re.compile(
     r"(?:Some\(Location \{ line: (?P<line>\d+), column: (?P<col>\d+) \}\)|None) \}\)?"
 )
 
+_PEST_ERROR = re.compile(r"-->\s*(?P<line>\d+):(?P<col>\d+)\s*\n.*\n\s*=\s*(?P<msg>[^\n]+)", re.S)
+
 
 def zenoh_error_text(exc: BaseException | str) -> str:
     """A zenoh error's message without Rust source locations and debug wrappers.
@@ -153,6 +155,9 @@ def zenoh_error_text(exc: BaseException | str) -> str:
         return f"{msg} (line {m['line']}, column {m['col']})" if m["line"] else msg
 
     text = _JSON5_MESSAGE.sub(plain, text)
+    pest = _PEST_ERROR.fullmatch(text.strip())
+    if pest:  # json5's multi-line syntax error drawing -> one line
+        text = f"{pest['msg']} (line {pest['line']}, column {pest['col']})"
     text = re.sub(r'^Str\("(.*)"\)$', r"\1", text.strip())
     return text.strip().rstrip(".").strip() or type(exc).__name__
 
