@@ -121,17 +121,23 @@ class ZenohFiles:
 
 
 def _tcp_files(tmp: Path) -> ZenohFiles:
-    """The shipped router.json5 and client-of-router.json5, only the addresses changed."""
+    """The shipped router.json5 and client-of-router.json5: addresses, the router's
+    user dictionary and the clients' logins changed (daemon / viewer)."""
     client = DEPLOY_ZENOH / "client-of-router.json5"
     local = '"tcp/127.0.0.1:7447"'
-    return ZenohFiles(
-        router=_rewrite(DEPLOY_ZENOH / "router.json5", tmp / "router.json5", f"{local},",
-                        f'"tcp/{RTR_VEH_ADDR}:{ZENOH_PORT}", "tcp/{RTR_GND_ADDR}:{ZENOH_PORT}",'),
-        vehicle=_rewrite(client, tmp / "zenoh-vehicle.json5", local,
-                         f'"tcp/{RTR_VEH_ADDR}:{ZENOH_PORT}"'),
-        ground=_rewrite(client, tmp / "zenoh-ground.json5", local,
-                        f'"tcp/{RTR_GND_ADDR}:{ZENOH_PORT}"'),
-    )
+    users = tmp / "gyrotherm-users.txt"
+    users.write_text("gyrotherm-daemon:test-daemon-pw\ngyrotherm-viewer:test-viewer-pw\n")
+    router = _rewrite(DEPLOY_ZENOH / "router.json5", tmp / "router.json5", f"{local},",
+                      f'"tcp/{RTR_VEH_ADDR}:{ZENOH_PORT}", "tcp/{RTR_GND_ADDR}:{ZENOH_PORT}",')
+    _rewrite(router, router, '"/etc/zenoh/gyrotherm-users.txt"', json.dumps(str(users)))
+    vehicle = _rewrite(client, tmp / "zenoh-vehicle.json5", local,
+                       f'"tcp/{RTR_VEH_ADDR}:{ZENOH_PORT}"')
+    _rewrite(vehicle, vehicle, '"REPLACE-WITH-A-SECRET"', '"test-daemon-pw"')
+    ground = _rewrite(client, tmp / "zenoh-ground.json5", local,
+                      f'"tcp/{RTR_GND_ADDR}:{ZENOH_PORT}"')
+    _rewrite(ground, ground, '"REPLACE-WITH-A-SECRET"', '"test-viewer-pw"')
+    _rewrite(ground, ground, 'user: "gyrotherm-daemon"', 'user: "gyrotherm-viewer"')
+    return ZenohFiles(router=router, vehicle=vehicle, ground=ground)
 
 
 def _openssl(*args: str, cwd: Path) -> None:

@@ -11,13 +11,16 @@
   TLS on 127.0.0.1 while a certificate from another CA is refused; and a
   router configured from acl-router.json5 forwards the daemon's samples and
   replies to a viewer but drops a viewer's publication under gyrotherm/**.
+* router.json5 requires a login and lets only the user gyrotherm-daemon publish
+  (the same ACL shape by user name); client-of-router.json5 ships a placeholder
+  password that gyrotherm refuses. The live spoofing checks of every shipped
+  configuration are in test_spoofing.py.
 """
 
 from __future__ import annotations
 
 import json
 import shutil
-import subprocess
 import threading
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
@@ -27,6 +30,9 @@ from typing import Any
 import pytest
 import zenoh
 
+from gyrotherm import ConfigError
+from gyrotherm._zenoh import PLACEHOLDER_PASSWORD, session_config
+from pkikit import make_ca, make_leaf, tls_files
 from streamkit import open_ephemeral
 
 DEPLOY_ZENOH = Path(__file__).resolve().parents[2] / "deploy" / "zenoh"
@@ -96,8 +102,15 @@ def test_tls_configs_require_mutual_tls_only() -> None:
     assert tls["verify_name_on_connect"] is True
 
 
-def test_acl_lets_only_the_daemon_publish_under_gyrotherm() -> None:
-    acl = _json(zenoh.Config.from_file(str(DEPLOY_ZENOH / "acl-router.json5")), "access_control")
+@pytest.mark.parametrize(
+    ("name", "identity", "daemon_id"),
+    [("acl-router.json5", "cert_common_names", "gyrotherm-daemon"),
+     ("router.json5", "usernames", "gyrotherm-daemon")],
+)  # fmt: skip
+def test_acl_lets_only_the_daemon_publish_under_gyrotherm(
+    name: str, identity: str, daemon_id: str
+) -> None:
+    acl = _json(zenoh.Config.from_file(str(DEPLOY_ZENOH / name)), "access_control")
     assert acl["enabled"] is True
     assert acl["default_permission"] == "deny"
     rules = {rule["id"]: rule for rule in acl["rules"]}
@@ -110,74 +123,48 @@ def test_acl_lets_only_the_daemon_publish_under_gyrotherm() -> None:
             grants_publish = "ingress" in rule["flows"] and publishing & set(rule["messages"])
             if grants_publish:
                 assert policy["subjects"] == ["daemon"], rule_id
-    assert subjects["daemon"]["cert_common_names"] == ["gyrotherm-daemon"]
+    assert subjects["daemon"][identity] == [daemon_id]
+    # every subject is identified by an authenticated property, never by nothing
+    for subject in acl["subjects"]:
+        assert subject.get(identity), subject
+
+
+def test_plain_router_requires_a_login_and_the_client_file_a_real_password(
+    tmp_path: Path,
+) -> None:
+    router = zenoh.Config.from_file(str(DEPLOY_ZENOH / "router.json5"))
+    assert _json(router, "transport/auth/usrpwd/dictionary_file")
+    client = zenoh.Config.from_file(str(DEPLOY_ZENOH / "client-of-router.json5"))
+    usrpwd = _json(client, "transport/auth/usrpwd")
+    assert usrpwd["user"] == "gyrotherm-daemon"
+    assert usrpwd["password"] == PLACEHOLDER_PASSWORD
+    with pytest.raises(ConfigError, match=r"client-of-router.json5.*usrpwd/password .*placeholder"):
+        session_config(config_file=DEPLOY_ZENOH / "client-of-router.json5")
+    edited = tmp_path / "zenoh.json5"
+    edited.write_text((DEPLOY_ZENOH / "client-of-router.json5").read_text().replace(
+        PLACEHOLDER_PASSWORD, "a-real-secret"))
+    assert _json(session_config(config_file=edited), "transport/auth/usrpwd/password") == (
+        "a-real-secret")
 
 
 # --------------------------------------------------------------- live TLS tests
-def _openssl(*args: str, cwd: Path) -> None:
-    subprocess.run(["openssl", *args], cwd=cwd, check=True, capture_output=True, timeout=60)
-
-
-def _make_ca(directory: Path, name: str) -> None:
-    _openssl(
-        "req", "-x509", "-new", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:P-256",
-        "-nodes", "-keyout", f"{name}-key.pem", "-out", f"{name}.pem", "-days", "2",
-        "-subj", f"/CN={name}", "-set_serial", "1",
-        "-addext", "basicConstraints=critical,CA:TRUE",
-        "-addext", "keyUsage=critical,keyCertSign,cRLSign",
-        cwd=directory,
-    )  # fmt: skip
-
-
-def _make_leaf(directory: Path, ca: str, common_name: str, serial: int) -> None:
-    extensions = directory / f"{common_name}.ext"
-    extensions.write_text(
-        "basicConstraints=critical,CA:FALSE\n"
-        "keyUsage=critical,digitalSignature\n"
-        "extendedKeyUsage=serverAuth,clientAuth\n"
-        "subjectAltName=IP:127.0.0.1,DNS:localhost\n"
-    )
-    _openssl(
-        "req", "-new", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:P-256", "-nodes",
-        "-keyout", f"{common_name}-key.pem", "-out", f"{common_name}.csr",
-        "-subj", f"/CN={common_name}",
-        cwd=directory,
-    )  # fmt: skip
-    _openssl(
-        "x509", "-req", "-in", f"{common_name}.csr", "-CA", f"{ca}.pem",
-        "-CAkey", f"{ca}-key.pem", "-set_serial", str(serial), "-days", "2",
-        "-extfile", extensions.name, "-out", f"{common_name}.pem",
-        cwd=directory,
-    )  # fmt: skip
-
-
 @pytest.fixture(scope="module")
 def pki(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """CA + leaf certificates (EC P-256, SAN 127.0.0.1) made with the openssl CLI."""
     if shutil.which("openssl") is None:
         pytest.skip("the openssl CLI is not installed: cannot make test certificates")
     directory = tmp_path_factory.mktemp("pki")
-    _make_ca(directory, "test-ca")
-    _make_ca(directory, "rogue-ca")
+    make_ca(directory, "test-ca")
+    make_ca(directory, "rogue-ca")
     for serial, name in enumerate(
         ("gyrotherm-router", "gyrotherm-daemon", "gyrotherm-viewer", "gyrotherm-peer"), start=2
     ):
-        _make_leaf(directory, "test-ca", name, serial)
-    _make_leaf(directory, "rogue-ca", "gyrotherm-rogue", 9)
+        make_leaf(directory, "test-ca", name, serial)
+    make_leaf(directory, "rogue-ca", "gyrotherm-rogue", 9)
     return directory
 
 
-def _tls_files(config: zenoh.Config, pki: Path, ca: str, name: str) -> None:
-    config.insert_json5(
-        "transport/link/tls/root_ca_certificate", json.dumps(str(pki / f"{ca}.pem"))
-    )
-    for direction in ("listen", "connect"):
-        config.insert_json5(
-            f"transport/link/tls/{direction}_certificate", json.dumps(str(pki / f"{name}.pem"))
-        )
-        config.insert_json5(
-            f"transport/link/tls/{direction}_private_key", json.dumps(str(pki / f"{name}-key.pem"))
-        )
+_tls_files = tls_files
 
 
 def _tls_node(
