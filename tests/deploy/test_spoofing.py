@@ -5,7 +5,8 @@ and each deploy/zenoh file the deploy/config TOMLs install as
 ``/etc/gyrotherm/zenoh.json5``, with its router where it has one), this starts the
 real :class:`~gyrotherm.daemon.Daemon` in-process on a virtual CAN bus fed with
 frames, a :class:`~gyrotherm.client.Subscriber`, and rogue sessions in client and
-in peer mode connected to the daemon's endpoint or to the router. Each rogue
+in peer mode (also router mode on the daemon's plain TCP endpoint) connected to the
+daemon's endpoint or to the router. Each rogue
 publishes valid msgpack rate/state/health messages claiming 999 °/s on the
 daemon's keys (exact keys and wildcards) and declares calibration queryables
 (exact key and ``**``) answering with a forged calibration id.
@@ -222,7 +223,8 @@ def _bench_toml(stack: ExitStack, tmp: Path, pki: Path) -> Scenario:
     return Scenario(
         daemon_zenoh=table,
         subscriber=lambda: gz.open_session(connect=[endpoint]),  # Subscriber's default
-        rogues={m: (lambda m=m: zenoh.open(_plain(m, endpoint))) for m in ("client", "peer")},
+        rogues={m: (lambda m=m: zenoh.open(_plain(m, endpoint)))
+                for m in ("client", "peer", "router")},
     )
 
 
@@ -233,7 +235,8 @@ def _peer_vehicle(stack: ExitStack, tmp: Path, pki: Path) -> Scenario:
     return Scenario(
         daemon_zenoh={"config": str(path)},
         subscriber=lambda: gz.open_session(connect=[endpoint]),
-        rogues={m: (lambda m=m: zenoh.open(_plain(m, endpoint))) for m in ("client", "peer")},
+        rogues={m: (lambda m=m: zenoh.open(_plain(m, endpoint)))
+                for m in ("client", "peer", "router")},
     )
 
 
@@ -252,7 +255,8 @@ def _peer_vehicle_own_acl(stack: ExitStack, tmp: Path, pki: Path) -> Scenario:
     return Scenario(
         daemon_zenoh={"config": str(_write(config, tmp / "own-acl.json5"))},
         subscriber=lambda: gz.open_session(connect=[endpoint]),
-        rogues={m: (lambda m=m: zenoh.open(_plain(m, endpoint))) for m in ("client", "peer")},
+        rogues={m: (lambda m=m: zenoh.open(_plain(m, endpoint)))
+                for m in ("client", "peer", "router")},
     )
 
 
