@@ -543,11 +543,7 @@ def _check(scenario: Scenario, calibration: Path, tmp: Path, stack: ExitStack) -
         assert sub.query_calibration(timeout_s=WAIT_S).calibration_id == daemon_id
     # Every reply on the exact key is the daemon's (forged wildcard-key replies may
     # arrive; query_calibration ignores them, checked above).
-    for reply in sub_session.get(sub.keys.calibration, target=zenoh.QueryTarget.ALL,
-                                 consolidation=zenoh.ConsolidationMode.NONE, timeout=WAIT_S):
-        if reply.ok is not None and str(reply.ok.key_expr) == sub.keys.calibration:
-            info = decode_calibration_info(reply.ok.payload.to_bytes())
-            assert info.calibration_id == daemon_id
+    assert set(_exact_key_reply_ids(sub_session)) == {daemon_id}
     stats = sub.stats()
     assert stats.rate.undecodable == stats.state.undecodable == stats.health.undecodable == 0
     assert seen.forged() == 0
@@ -583,6 +579,38 @@ def test_detector_sees_spoofing_without_protection(
         scenario.refused = {}
         with pytest.raises(AssertionError, match=r"forged messages delivered"):
             _check(scenario, calibration_file, tmp_path, stack)
+
+
+def _exact_key_reply_ids(session: zenoh.Session) -> list[str]:
+    key = f"gyrotherm/{VEHICLE}/{SENSOR}/calibration"
+    return [decode_calibration_info(r.ok.payload.to_bytes()).calibration_id
+            for r in session.get(key, target=zenoh.QueryTarget.ALL,
+                                 consolidation=zenoh.ConsolidationMode.NONE, timeout=WAIT_S)
+            if r.ok is not None and str(r.ok.key_expr) == key]  # fmt: skip
+
+
+@pytest.mark.parametrize("protected", [False, True])
+def test_forged_calibration_reply_reaches_the_subscriber_only_without_protection(
+    protected: bool, tmp_path: Path, calibration_file: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Control for the calibration half of the check: without the daemon's rule a
+    client-mode rogue's queryable answers the subscriber's query on the exact key."""
+    if not protected:
+        monkeypatch.setattr(gz, "protect_keys", lambda config, keys, source: config)
+    with ExitStack() as stack:
+        scenario = _bench_toml(stack, tmp_path, tmp_path)
+        daemon = stack.enter_context(
+            _running_daemon(scenario.daemon_zenoh, calibration_file, tmp_path))
+        viewer = scenario.subscriber()
+        stack.callback(viewer.close)
+        rogue = scenario.rogues["client"]()
+        stack.callback(rogue.close)
+        _arm_rogue(rogue)
+        # declarations precede the query on the rogue's link: the daemon knows them now
+        assert _daemon_reply(rogue, daemon._calibration_id)
+        ids = _exact_key_reply_ids(viewer)
+        assert daemon._calibration_id in ids
+        assert (FORGED_ID in ids) is not protected, ids
 
 
 def test_every_shipped_configuration_is_covered() -> None:
