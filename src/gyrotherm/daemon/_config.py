@@ -17,6 +17,7 @@ Example (every key; relative paths are relative to the config file)::
     on_counter_jump = "deliver"       # deliver | reject
     recv_timeout_s = 0.2              # longest wait for a frame before housekeeping, s
     reopen_after_s = 5.0              # no frame for this long: close and reopen the bus, s
+    start_timeout_s = 20.0            # at start, retry opening the bus this long, then exit 2, s
 
     [can.signals]                     # optional: message/signal names in your DBC
     rate_message = "GyroRate"         # (all SignalMap fields, see docs/wire-format.md)
@@ -29,6 +30,15 @@ Example (every key; relative paths are relative to the config file)::
     mode = "peer"                           # peer | client | router
     listen = ["tcp/127.0.0.1:7447"]         # default; [] in client mode
     connect = []
+    publish_block_max_s = 0.5               # longest a rate/state put may block on a full
+                                            # link before zenoh drops that link, s
+
+``start_timeout_s`` (0.5…600 s) must leave room in the unit's ``TimeoutStartSec=30s``
+for the Zenoh session to open. ``publish_block_max_s``
+(0.01…2 s) is written into the session config as zenoh's
+``transport/link/tx/queue/congestion_control/block/wait_before_close`` (µs), also
+over a ``config`` file's value; it must stay well under half of ``WatchdogSec=5s``
+(docs/operations.md, "A slow or frozen subscriber").
 
 Errors are :class:`gyrotherm.ConfigError` naming the file and the key.
 """
@@ -63,6 +73,7 @@ class CanConfig:
     on_counter_jump: str = "deliver"
     recv_timeout_s: float = 0.2
     reopen_after_s: float = 5.0
+    start_timeout_s: float = 20.0
 
 
 @dataclass(frozen=True)
@@ -73,6 +84,7 @@ class ZenohConfig:
     mode: str = "peer"
     listen: tuple[str, ...] = ("tcp/127.0.0.1:7447",)
     connect: tuple[str, ...] = ()
+    publish_block_max_s: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -145,7 +157,7 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
     where = f"{source}: [can]"
     c = _table(data, "can", source)
     _unknown(c, {"interface", "channel", "bitrate", "host", "port", "dbc", "signals",
-                 "on_counter_jump", "recv_timeout_s", "reopen_after_s"}, where)
+                 "on_counter_jump", "recv_timeout_s", "reopen_after_s", "start_timeout_s"}, where)
     interface = _take(c, "interface", str, where, "socketcan")
     if interface not in INTERFACES:
         raise ConfigError(f"{where}: interface {interface!r} is not one of {INTERFACES}")
@@ -181,11 +193,13 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
                                 2.0, f"{where}: recv_timeout_s"),
         reopen_after_s=_bounded(_take(c, "reopen_after_s", (int, float), where, 5.0), 0.5,
                                 3600.0, f"{where}: reopen_after_s"),
+        start_timeout_s=_bounded(_take(c, "start_timeout_s", (int, float), where, 20.0), 0.5,
+                                 600.0, f"{where}: start_timeout_s"),
     )
 
     where = f"{source}: [zenoh]"
     z = _table(data, "zenoh", source)
-    _unknown(z, {"config", "mode", "listen", "connect"}, where)
+    _unknown(z, {"config", "mode", "listen", "connect", "publish_block_max_s"}, where)
     zfile = _take(z, "config", str, where, None)
     if zfile is not None and ({"mode", "listen", "connect"} & set(z)):
         raise ConfigError(f"{where}: 'config' excludes 'mode', 'listen' and 'connect'")
@@ -208,6 +222,8 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
         mode=mode,
         listen=tuple(listen),
         connect=tuple(connect),
+        publish_block_max_s=_bounded(_take(z, "publish_block_max_s", (int, float), where, 0.5),
+                                     0.01, 2.0, f"{where}: publish_block_max_s"),
     )
     est_table = _table(data, "estimator", source)
     return DaemonConfig(

@@ -18,7 +18,11 @@ sees the gap); ``bad_timestamp`` (a non-finite frame time stamp); the
 ``reason`` of a :class:`gyrotherm.bus.TransportItem` (something read from the
 link that is not a frame, e.g. ``transport_malformed``);
 ``internal_error`` (an unexpected exception while processing the frame: logged,
-and the stream goes on).
+and the stream goes on); ``congestion`` (a drop reason the sink returned: the
+message was handed to Zenoh, ``seq`` spent, but a full link to a frozen or too
+slow subscriber gave it up — see :mod:`gyrotherm.daemon._sink`).
+``frames_published`` counts what Zenoh accepted; messages a link loses after that
+(a link that dies with messages in flight) are seen only as ``seq`` gaps.
 Before the first temperature frame rates are published uncorrected
 (bias 0) with ``TEMPERATURE_STALE | ESTIMATOR_WARMUP`` set.
 """
@@ -60,16 +64,18 @@ _ZERO = (0.0, 0.0, 0.0)
 
 
 class Sink(Protocol):
-    """Where payloads go; each call may raise :class:`PublishError`.
+    """Where payloads go; each call may raise :class:`PublishError` (the payload
+    never left: dropped as ``publish_error``, ``seq`` reused).
 
-    A call returns ``False`` when the payload was sent but no subscriber matched
-    it (nobody received it: dropped as ``no_subscriber``), ``True`` or ``None``
-    when it was published.
+    Otherwise the payload left (its ``seq`` is spent) and a call returns ``True``
+    or ``None`` when it was published, ``False`` when no subscriber matched it
+    (nobody received it: dropped as ``no_subscriber``), or a drop-reason string
+    when it was handed over but given up for that reason (``congestion``).
     """
 
-    def put_rate(self, payload: bytes) -> bool | None: ...
+    def put_rate(self, payload: bytes) -> bool | str | None: ...
 
-    def put_state(self, payload: bytes) -> bool | None: ...
+    def put_state(self, payload: bytes) -> bool | str | None: ...
 
 
 @dataclass(frozen=True)
@@ -187,10 +193,10 @@ class Pipeline:
             self._drops[PUBLISH_ERROR] += 1
             return
         self._rate_seq += 1
-        if routed is False:
-            self._drops[NO_SUBSCRIBER] += 1
-            return
-        self._rate_published += 1
+        if routed is True or routed is None:
+            self._rate_published += 1
+        else:  # False: nobody subscribed; a string: the sink's drop reason
+            self._drops[NO_SUBSCRIBER if routed is False else routed] += 1
 
     def _on_temperature(self, s: TemperatureSample, receive_time_s: float) -> None:
         self.last_estimate = self._estimator.update(s.time_s, s.temperature_c)
@@ -244,10 +250,10 @@ class Pipeline:
             self._drops[PUBLISH_ERROR] += 1
             return
         self._state_seq += 1
-        if routed is False:
-            self._drops[NO_SUBSCRIBER] += 1
-            return
-        self._state_published += 1
+        if routed is True or routed is None:
+            self._state_published += 1
+        else:  # False: nobody subscribed; a string: the sink's drop reason
+            self._drops[NO_SUBSCRIBER if routed is False else routed] += 1
 
     def tick(self) -> None:
         """Housekeeping (≈ once a second): predict-only when temperature frames stopped."""

@@ -7,9 +7,19 @@ estimation when temperature frames stop, the systemd watchdog (so a stuck
 pipeline stops petting it and gets restarted), STATUS= lines and calibration
 reloads.
 
-Signals: SIGTERM and SIGINT stop the loop (publishers undeclared, session and
-bus closed); SIGHUP reloads the calibration atomically — a bad file keeps the
-old calibration, logs why and counts ``reload_failures``.
+Start: the Zenoh session opens, then the bus is waited for (attempts with
+backoff until ``[can] start_timeout_s``, :mod:`gyrotherm.daemon._buskeeper`);
+READY=1 only once both are up. A lost or silent bus is reopened in the
+background while the loop keeps running (watchdog, health).
+
+Signals: SIGTERM and SIGINT stop the daemon in every state — starting, waiting
+for the bus, mid-handshake, reopening, blocked on a publish (at most
+``[zenoh] publish_block_max_s``): every open runs on a worker thread and every
+wait is an event wait of at most ``recv_timeout_s``
+(:mod:`gyrotherm.daemon._attempt`); publishers are undeclared, session and bus
+closed. The handlers only set a flag (a handler must take no lock). SIGHUP
+reloads the calibration atomically — a bad file keeps the old calibration,
+logs why and counts ``reload_failures``.
 
 The Zenoh side (publishers, matching status, transport events) is
 :class:`~gyrotherm.daemon._sink._ZenohSink`; its module docstring states how
@@ -28,12 +38,11 @@ from dataclasses import dataclass
 from types import FrameType
 from typing import Any
 
-import can
 import zenoh
 
 from gyrotherm._errors import GyrothermError
 from gyrotherm._zenoh import keys, session_config
-from gyrotherm.bus import FrameSource, open_bus
+from gyrotherm.bus import FrameSource
 from gyrotherm.codecs import FrameDecoder
 from gyrotherm.codecs._wire import (
     CalibrationInfo,
@@ -43,30 +52,37 @@ from gyrotherm.codecs._wire import (
     encode_health,
 )
 from gyrotherm.compensation import Calibration, read_calibration
+from gyrotherm.daemon._attempt import Attempt, wait_for
+from gyrotherm.daemon._buskeeper import BusKeeper
 from gyrotherm.daemon._config import DaemonConfig
-from gyrotherm.daemon._pipeline import Pipeline
+from gyrotherm.daemon._pipeline import Counters, Pipeline
 from gyrotherm.daemon._sdnotify import Notifier
-from gyrotherm.daemon._sink import _ZenohSink
+from gyrotherm.daemon._sink import _ZenohSink, bound_publishing
 
 log = logging.getLogger("gyrotherm.daemon")
 
 
-class _ClosedBus(FrameSource):
-    """Stands in for a bus that could not be reopened: receives nothing."""
+#: Longest the daemon waits for the Zenoh session to close at exit, s (zenoh's own
+#: bound is 10 s; a frozen peer makes it wait that long).
+SESSION_CLOSE_WAIT_S = 2.0
 
-    def __init__(self) -> None:
-        self._quiet = threading.Event()  # never set: recv waits like a quiet bus
 
-    def recv(self, timeout_s: float | None = None) -> can.Message | None:
-        self._quiet.wait(min(timeout_s or 0.0, 0.2))
-        return None
+def _close_session(session: zenoh.Session) -> None:
+    """session.close() on a worker thread, waited for at most SESSION_CLOSE_WAIT_S."""
 
-    @property
-    def is_shutdown(self) -> bool:
-        return False
+    def close() -> None:
+        try:
+            session.close()
+        except zenoh.ZError as exc:
+            log.warning("zenoh session close: %s", exc)
+        finally:
+            done.set()
 
-    def shutdown(self) -> None:
-        return None
+    done = threading.Event()
+    threading.Thread(target=close, name="gyrotherm-zenoh-close", daemon=True).start()
+    if not done.wait(SESSION_CLOSE_WAIT_S):
+        log.warning("zenoh session still closing after %g s (a frozen peer?): not waiting",
+                    SESSION_CLOSE_WAIT_S)
 
 
 @dataclass(frozen=True)
@@ -101,8 +117,9 @@ class Daemon:
         self._health_seq = 0
         self._last_health = -math.inf
         self._last_frame = time.monotonic()
-        self._last_reopen = -math.inf
-        self.bus_reopens = 0
+        self._bus: FrameSource | None = None
+        self._signalled: int | None = None  # set by the signal handlers (no locks there)
+        self._keeper = BusKeeper(config.can, self._stopping)
         if config.calibration is not None:
             self._calibration, self._calibration_id = read_calibration(config.calibration)
         # What the queryable answers, replaced whole by the loop thread (never mutated):
@@ -114,6 +131,14 @@ class Daemon:
     def stop(self) -> None:
         self._stop.set()
 
+    def _stopping(self) -> bool:
+        return self._signalled is not None or self._stop.is_set()
+
+    @property
+    def bus_reopens(self) -> int:
+        """How often the configured bus was shut down to be reopened."""
+        return self._keeper.reopens
+
     def request_reload(self) -> None:
         self._reload.set()
 
@@ -121,8 +146,8 @@ class Daemon:
         """SIGTERM/SIGINT stop, SIGHUP reloads (main thread only)."""
 
         def on_stop(signum: int, frame: FrameType | None) -> None:
-            log.info("signal %s: stopping", signal.Signals(signum).name)
-            self._stop.set()
+            # no logging, no Event.set: the interrupted main thread may hold their locks
+            self._signalled = signum
 
         def on_hup(signum: int, frame: FrameType | None) -> None:
             self._reload.set()
@@ -133,10 +158,20 @@ class Daemon:
 
     # --- the loop --------------------------------------------------------------------
 
-    def _open_bus(self) -> FrameSource:
-        c = self.config.can
-        return open_bus(interface=c.interface, channel=c.channel, bitrate=c.bitrate,
-                        host=c.host, port=c.port)
+    def _open_session(self, zconf: zenoh.Config) -> zenoh.Session | None:
+        """zenoh.open on a worker thread (a client may wait for its router); None on stop."""
+        attempt = Attempt(lambda: zenoh.open(zconf), lambda s: s.close(), "gyrotherm-zenoh-open")
+        if not wait_for(attempt.done, self._stopping, math.inf):
+            attempt.abandon()
+            return None
+        try:
+            return attempt.result()
+        except zenoh.ZError as exc:
+            raise GyrothermError(f"cannot open zenoh session: {exc}") from exc
+
+    def _log_stop_reason(self) -> None:
+        if self._signalled is not None:
+            log.info("signal %s: stopping", signal.Signals(self._signalled).name)
 
     def run(self, *, source: FrameSource | None = None) -> RunSummary:
         """Run until :meth:`stop` or a signal; ``source`` overrides the configured bus."""
@@ -148,15 +183,16 @@ class Daemon:
                  if z.config_file else
                  session_config(mode=z.mode, listen=z.listen, connect=z.connect,  # type: ignore[arg-type]
                                 protect=keys(cfg.vehicle, cfg.sensor)))
+        bound_publishing(zconf, z.publish_block_max_s)
+        pipeline: Pipeline | None = None
         with contextlib.ExitStack() as stack:
             # every resource is released in reverse order, whatever fails later
-            self._bus = source or self._open_bus()
-            stack.callback(lambda: self._bus.shutdown())
-            try:
-                session = zenoh.open(zconf)
-            except zenoh.ZError as exc:
-                raise GyrothermError(f"cannot open zenoh session: {exc}") from exc
-            stack.callback(session.close)
+            log.info("starting: zenoh session, then the bus %s (for at most %g s)",
+                     self._keeper.where, cfg.can.start_timeout_s)
+            session = self._open_session(zconf)
+            if session is None:
+                return self._summary(None)
+            stack.callback(_close_session, session)
             sink = _ZenohSink(session, cfg)
             stack.callback(sink.undeclare)
             self._sink = sink
@@ -169,12 +205,23 @@ class Daemon:
             queryable = session.declare_queryable(k.calibration, self._on_query)
             stack.callback(queryable.undeclare)
             stack.callback(lambda: self._notifier.stopping(status="stopping"))
+            stack.callback(self._keeper.close)
+            if source is not None:
+                stack.callback(source.shutdown)
+            bus = source or self._keeper.open_at_start()
+            if bus is None:  # stopped while waiting for the bus
+                return self._summary(pipeline)
+            self._bus = bus
             self._started = self._last_frame = time.monotonic()
             log.info("up: %s %s → %s", cfg.can.interface, cfg.can.channel, k.rate)
             self.ready.set()
             self._notifier.ready(status=self._status_line())
             self._loop(pipeline, sink, reopen=source is None)
-        c = pipeline.counters()
+        return self._summary(pipeline)
+
+    def _summary(self, pipeline: Pipeline | None) -> RunSummary:
+        self._log_stop_reason()
+        c = pipeline.counters() if pipeline else Counters(0, 0, 0, 0, {}, 0)
         log.info("stopped: %d frames in, %d published, drops %s", c.frames_received,
                  c.frames_published, c.drops)
         return RunSummary(c.frames_received, c.frames_published, c.drops, self.reloads,
@@ -184,43 +231,54 @@ class Daemon:
         process = pipeline.process
         now_wall = time.time
         mono = time.monotonic
+        cpu = time.thread_time
         timeout = self.config.can.recv_timeout_s
         period = self.config.health_period_s
         next_tick = mono()
         stop = self._stop
-        while not stop.is_set():
-            recv = self._bus.recv
-            msg = recv(timeout)
-            if msg is not None:
-                process(msg, now_wall())
-                # drain what is already queued before housekeeping
-                for _ in range(256):
-                    msg = recv(0.0)
-                    if msg is None:
-                        break
+        stopping = self._stopping
+        keeper = self._keeper
+        quiet = suspect = False
+        bus: FrameSource | None = self._bus
+        while not stopping():
+            if bus is None:  # down, being reopened: wait, do not spin
+                stop.wait(timeout)
+            elif not quiet:
+                msg = bus.recv(timeout)
+                quiet = msg is None
+                if msg is not None:
+                    recv = bus.recv
                     process(msg, now_wall())
-                self._last_frame = mono()
+                    # drain what is already queued before housekeeping
+                    for _ in range(256):
+                        msg = recv(0.0)
+                        if msg is None:
+                            break
+                        process(msg, now_wall())
+                    self._last_frame = mono()
+            else:  # quiet: a recv must wait, not return at once or burn CPU (dead peer)
+                cpu0, wall0 = cpu(), mono()
+                msg = bus.recv(timeout)
+                if msg is None:
+                    wall = mono() - wall0
+                    if wall < 0.5 * timeout:
+                        suspect = True
+                        stop.wait(timeout - wall)
+                    elif cpu() - cpu0 > 0.5 * wall:
+                        suspect = True
+                else:
+                    quiet = False
+                    process(msg, now_wall())
+                    self._last_frame = mono()
             if mono() >= next_tick:
                 next_tick = mono() + min(period, 0.25)
                 self._housekeeping(pipeline, sink)
-                quiet_since = max(self._last_frame, self._last_reopen)
-                if reopen and mono() - quiet_since > self.config.can.reopen_after_s:
-                    self._reopen_bus()
-
-    def _reopen_bus(self) -> None:
-        """No frame for ``reopen_after_s``: close and open the bus again (a dead
-        socketcand peer, a bus-off controller); failures are logged and retried."""
-        self._last_reopen = time.monotonic()
-        self.bus_reopens += 1
-        log.warning("no CAN frame for %.1f s: reopening %s %s (reopen %d)",
-                    self.config.can.reopen_after_s, self.config.can.interface,
-                    self.config.can.channel, self.bus_reopens)
-        self._bus.shutdown()
-        try:
-            self._bus = self._open_bus()
-        except GyrothermError as exc:
-            log.error("reopening the bus failed, retrying later: %s", exc)
-            self._bus = _ClosedBus()
+                if reopen:
+                    keeper.tend(self._last_frame, suspect=suspect)
+                    suspect = False
+                    if keeper.bus is not bus:
+                        bus = self._bus = keeper.bus
+                        quiet = False
 
     def _housekeeping(self, pipeline: Pipeline, sink: _ZenohSink) -> None:
         self._notifier.watchdog()
@@ -286,6 +344,7 @@ class Daemon:
         if self._sink is not None:
             subscribed = "yes" if self._sink.rate_matched else "none"
             zen = f"; zenoh {self._sink.transports()} transports, rate subscribers {subscribed}"
+        down = self._keeper.status()
         return (f"{c.frames_received} frames, {c.frames_published} published, "
                 f"{dropped} dropped; calibration {self._calibration_id or 'none'}; "
-                f"flags {p.flags!r}{zen}")
+                f"flags {p.flags!r}{zen}{'; ' + down if down else ''}")

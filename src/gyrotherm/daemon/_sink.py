@@ -14,20 +14,60 @@ puts to the pipeline, which counts the frame as dropped ``no_subscriber``
 sees in ``seq`` is the one health reports. Matching changes and transports
 (router, peers) opening and closing are logged; the reconnection itself is
 zenoh's (``connect/retry`` in the Zenoh config), the daemon keeps running.
+
+A slow or frozen subscriber (docs/operations.md, "A slow or frozen subscriber"):
+rate and state use ``CongestionControl.BLOCK``, and the daemon sets zenoh's
+``transport/link/tx/queue/congestion_control/block/wait_before_close`` to
+``[zenoh] publish_block_max_s`` (:func:`bound_publishing`), so a put waits at most
+that long for room on a full link; then zenoh gives the message up and closes
+that link. The sink times each put (two monotonic clock reads) and reports a put
+that took the whole bound, and every put after it until zenoh has closed the
+link (a transport closing, or :data:`CONGESTION_HOLD_S`), as dropped
+``congestion``: zenoh accepted those messages but they reach nobody on the
+closing link. Messages already queued in zenoh or in the sockets when the link
+closes are lost without the daemon knowing (counted ``published``); the TCP send
+buffer is limited to :data:`TCP_SNDBUF_BYTES` (unless the Zenoh config file sets
+it) so that a frozen subscriber fills it, and is noticed, within about a second.
 """
 
 from __future__ import annotations
 
+import json
 import logging
+import math
+import time
 from typing import Any
 
 import zenoh
 
-from gyrotherm._errors import PublishError
+from gyrotherm._errors import ConfigError, PublishError
 from gyrotherm._zenoh import keys
 from gyrotherm.daemon._config import DaemonConfig
 
 log = logging.getLogger("gyrotherm.daemon")
+
+#: Drop reason: the put blocked ``publish_block_max_s`` on a full link (a frozen or
+#: too slow subscriber), or came while zenoh was closing such a link.
+CONGESTION = "congestion"
+#: Longest a congestion episode lasts without a transport closing, s (zenoh's default lease).
+CONGESTION_HOLD_S = 10.0
+#: TCP send buffer per zenoh link unless the Zenoh config sets one, bytes.
+TCP_SNDBUF_BYTES = 131072
+_WAIT_BEFORE_CLOSE = "transport/link/tx/queue/congestion_control/block/wait_before_close"
+_SO_SNDBUF = "transport/link/tcp/so_sndbuf"
+_mono = time.monotonic
+
+
+def bound_publishing(zconf: zenoh.Config, publish_block_max_s: float) -> None:
+    """Bound how long a BLOCK put may wait on a full link (zenoh then closes the link),
+    and cap the TCP send buffer unless the config already sets one."""
+    try:
+        zconf.insert_json5(_WAIT_BEFORE_CLOSE, str(max(1, round(publish_block_max_s * 1e6))))
+        if json.loads(zconf.get_json(_SO_SNDBUF)) is None:
+            zconf.insert_json5(_SO_SNDBUF, str(TCP_SNDBUF_BYTES))
+    except (zenoh.ZError, ValueError) as exc:
+        raise ConfigError(f"zenoh config: cannot set {_WAIT_BEFORE_CLOSE} for "
+                          f"publish_block_max_s = {publish_block_max_s!r}: {exc}") from exc
 
 
 def _matching(publisher: zenoh.Publisher) -> bool:
@@ -40,10 +80,11 @@ class _ZenohSink:
     """Pipeline sink backed by Zenoh publishers.
 
     ``put_rate``/``put_state`` return whether a subscriber matched the message
-    (False: nobody received it). The matched state is cached from matching
-    listener callbacks (free on the hot path); while the cache says "no
-    subscriber" each put asks the publisher again (≈3 µs), so a subscriber whose
-    listener callback has not run yet is not counted as missing. A message lost
+    (False: nobody received it), or :data:`CONGESTION` (module docstring). The
+    matched state is cached from matching listener callbacks (free on the hot
+    path); while the cache says "no subscriber" each put asks the publisher
+    again (≈3 µs), so a subscriber whose listener callback has not run yet is
+    not counted as missing. A message lost
     on a link that dies before zenoh notices is not seen here.
     """
 
@@ -53,6 +94,9 @@ class _ZenohSink:
         # "published" means sent; a stuck network stalls the loop and the watchdog fires.
         cc = zenoh.CongestionControl.BLOCK
         self._session = session
+        self._block_max_s = config.zenoh.publish_block_max_s
+        self._congested_until = -math.inf  # monotonic s; a congestion episode lasts until then
+        self.congestion_episodes = 0
         self.rate = session.declare_publisher(k.rate, congestion_control=cc)
         self.state = session.declare_publisher(k.state, congestion_control=cc)
         self.health = session.declare_publisher(k.health)
@@ -78,12 +122,27 @@ class _ZenohSink:
     def _on_state_matching(self, status: zenoh.MatchingStatus) -> None:
         self.state_matched = status.matching
 
+    def _congestion(self, t0: float, what: str) -> str:
+        if t0 >= self._congested_until:  # a new episode
+            self.congestion_episodes += 1
+            log.warning("zenoh: a %s put blocked %.2f s (publish_block_max_s): a subscriber's "
+                        "link is full (frozen or too slow); zenoh closes that link, messages "
+                        "until then are counted in drops as 'congestion'", what,
+                        _mono() - t0)
+            self._congested_until = t0 + CONGESTION_HOLD_S
+        return CONGESTION
+
     def _on_transport(self, event: zenoh.TransportEvent) -> None:
         t = event.transport
         what = str(t.whatami).rsplit(".", 1)[-1].lower()
         if event.kind == zenoh.SampleKind.PUT:
             log.info("zenoh: connected to %s %s", what, t.zid)
         else:
+            # the closed link ends a congestion episode; the matching listener may call
+            # back late (seen: only once the frozen peer ran again), so ask now
+            self._congested_until = -math.inf
+            self.rate_matched = _matching(self.rate)
+            self.state_matched = _matching(self.state)
             log.warning("zenoh: lost %s %s; zenoh reconnects to the configured "
                         "endpoints", what, t.zid)
 
@@ -91,18 +150,24 @@ class _ZenohSink:
         """Open zenoh transports (to routers and peers)."""
         return len(self._session.info.transports())
 
-    def put_rate(self, payload: bytes) -> bool:
+    def put_rate(self, payload: bytes) -> bool | str:
+        t0 = _mono()
         try:
             self._put_rate(payload)
         except zenoh.ZError as exc:
             raise PublishError(f"rate: {exc}") from exc
+        if t0 < self._congested_until or _mono() - t0 >= self._block_max_s:
+            return self._congestion(t0, "rate")
         return self.rate_matched or _matching(self.rate)
 
-    def put_state(self, payload: bytes) -> bool:
+    def put_state(self, payload: bytes) -> bool | str:
+        t0 = _mono()
         try:
             self._put_state(payload)
         except zenoh.ZError as exc:
             raise PublishError(f"state: {exc}") from exc
+        if t0 < self._congested_until or _mono() - t0 >= self._block_max_s:
+            return self._congestion(t0, "state")
         return self.state_matched or _matching(self.state)
 
     def undeclare(self) -> None:
