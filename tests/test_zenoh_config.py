@@ -393,3 +393,26 @@ def test_protect_refuses_reserved_ids_and_multicast_transports(tmp_path: Path) -
     with pytest.raises(ConfigError, match=r"connect/endpoints 'udp/224.0.0.225:7448' is a "
                                           r"multicast transport"):  # fmt: skip
         session_config(config_file=path, protect=keys("veh1", "imu0"))
+
+
+@pytest.mark.parametrize("protected", [False, True])
+def test_protect_applies_in_client_mode(protected: bool) -> None:
+    """zenoh applies the rule in a client session too: a put from another client,
+    routed to it by a router, is dropped at the protected client's ingress."""
+    k = keys("veh1", "imu0")
+    router, endpoint = open_ephemeral(session_config(mode="router", listen=["tcp/127.0.0.1:0"]))
+    with router, zenoh.open(session_config(mode="client", connect=[endpoint],
+                                           protect=k if protected else None)) as client, \
+            open_session(mode="client", connect=[endpoint]) as other:  # fmt: skip
+        got: list[str] = []
+        client.declare_subscriber("gyrotherm/**", lambda s: got.append(str(s.key_expr)))
+        client.declare_queryable("sync/q", lambda q: q.reply("sync/q", b"ok"))
+        pub = other.declare_publisher(k.rate)
+        for _ in range(3):
+            pub.put(b"forged")
+            # the router forwards the put, then this query, on the same link: when the
+            # reply is back, the client's subscriber has seen the put if it passed
+            assert [r.ok is not None for r in other.get("sync/q", timeout=10)] == [True]
+            if got:
+                break
+        assert got == ([] if protected else [k.rate])
