@@ -5,6 +5,11 @@ substitutions make them small and give them ports nobody else holds; each must
 match the README (or the example config) exactly once, so a README change that
 this test does not know about fails here instead of silently going untested.
 Commands ending in ``&`` run in the background; ``kill %1 %2`` stops them.
+
+As when the block is pasted into a shell, the streaming commands start one right
+after the other, waiting on nothing: the simulator, the daemon (which waits for
+the simulator's port) and ``listen`` (which waits for the daemon) come up in
+whatever order they manage.
 """
 
 from __future__ import annotations
@@ -22,7 +27,7 @@ from typing import IO
 
 import pytest
 
-from streamkit import retry_on_address_in_use
+from streamkit import free_port, retry_on_address_in_use
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -33,10 +38,10 @@ STEP_TIMEOUT_S = 180.0  # generous bound per command on 2 loaded cores; not a sp
 SMALLER = {
     "--heating-min 5 10 20 30 40 50 60": "--heating-min 5 10 20 --rate-hz 1 --hold-s 600",
     "--heating-min 60 --validation": "--heating-min 60 --validation --rate-hz 1 --hold-s 600",
-    "--port 29536": "--port 0",  # the simulator prints the port it bound
     "--count 50": "--count 20 --timeout-s 120",
 }
 ZENOH_README = "tcp/127.0.0.1:7447"
+SIM_PORT_README = "--port 29536"
 SOCKETCAND_CONFIG = "port = 29536"
 ZENOH_CONFIG = 'listen = ["tcp/127.0.0.1:7447"]'
 
@@ -139,6 +144,7 @@ def test_tour_commands_are_the_ones_this_test_adapts() -> None:
     for old in SMALLER:
         _replace_once(joined, old, SMALLER[old], "README tour")
     _replace_once(joined, ZENOH_README, "", "README tour")
+    _replace_once(joined, SIM_PORT_README, "", "README tour")
     assert sum(c.endswith("&") for c in commands) == 2 and commands[-1] == "kill %1 %2"
     config = EXAMPLE_CONFIG.read_text(encoding="utf-8")
     _replace_once(config, SOCKETCAND_CONFIG, "", str(EXAMPLE_CONFIG))
@@ -164,40 +170,38 @@ def test_readme_tour_runs(tmp_path: Path) -> None:
     listen_cmd, kill_cmd = streaming[2:]
     assert kill_cmd == "kill %1 %2" and run_cmd.startswith("gyrotherm run ")
 
-    with ExitStack() as stack:
-
-        def start(zenoh_port: int) -> tuple[int, subprocess.Popen[str], subprocess.Popen[str],
-                                            Watch]:  # fmt: skip
-            """sim stream &, then run &: a fresh pair per attempt (the port may be taken)."""
-            attempt = stack.enter_context(ExitStack())
-            sim, sim_out, _ = attempt.enter_context(background(sim_cmd, tmp_path, env))
-            listening = sim_out.wait_for(r"listening on 127\.0\.0\.1:(\d+)", STEP_TIMEOUT_S)
-            assert listening, f"sim stream did not start: {sim.poll()}"
-            config = EXAMPLE_CONFIG.read_text(encoding="utf-8")
-            config = _replace_once(config, SOCKETCAND_CONFIG, f"port = {listening[1]}", "config")
-            config = _replace_once(config, ZENOH_CONFIG,
-                                   f'listen = ["tcp/127.0.0.1:{zenoh_port}"]', "config")
-            (tmp_path / "examples" / EXAMPLE_CONFIG.name).write_text(config, encoding="utf-8")
-            daemon, daemon_out, daemon_err = attempt.enter_context(
+    def attempt(zenoh_port: int) -> tuple[str, str, str]:
+        """sim &, run &, listen: started back to back; stdout of each, daemon stderr."""
+        sim_port = free_port()
+        config = EXAMPLE_CONFIG.read_text(encoding="utf-8")
+        config = _replace_once(config, SOCKETCAND_CONFIG, f"port = {sim_port}", "config")
+        config = _replace_once(config, ZENOH_CONFIG,
+                               f'listen = ["tcp/127.0.0.1:{zenoh_port}"]', "config")
+        (tmp_path / "examples" / EXAMPLE_CONFIG.name).write_text(config, encoding="utf-8")
+        with ExitStack() as stack:
+            sim, _sim_out, sim_err = stack.enter_context(background(
+                sim_cmd.replace(SIM_PORT_README, f"--port {sim_port}"), tmp_path, env))
+            daemon, daemon_out, daemon_err = stack.enter_context(
                 background(run_cmd, tmp_path, env))
-            if daemon_err.wait_for(r"gyrotherm\.daemon: up: ", STEP_TIMEOUT_S) is None:
-                daemon.wait(STEP_TIMEOUT_S)
-                attempt.close()  # stop this attempt's simulator before a retry
-                raise RuntimeError(f"gyrotherm run exited {daemon.returncode}:\n"
-                                   f"{daemon_err.text()}")  # fmt: skip
-            return zenoh_port, sim, daemon, daemon_out
+            listen = subprocess.run(
+                ["bash", "-c", listen_cmd.replace(ZENOH_README, f"tcp/127.0.0.1:{zenoh_port}")],
+                cwd=tmp_path, env=env, text=True, capture_output=True, timeout=STEP_TIMEOUT_S)
+            # kill %1 %2
+            for proc in (sim, daemon):
+                proc.send_signal(signal.SIGTERM)
+            daemon.wait(STEP_TIMEOUT_S)
+            sim.wait(STEP_TIMEOUT_S)
+            err = daemon_err.text()
+            if daemon.returncode != 0 or sim.returncode != 0:
+                raise RuntimeError(f"gyrotherm run exited {daemon.returncode}, sim "
+                                   f"{sim.returncode}:\n{err}\n{sim_err.text()}")
+            assert listen.returncode == 0, f"{listen.stdout}\n{listen.stderr}\n{err}"
+            return listen.stdout, daemon_out.text(), err
 
-        zenoh_port, sim, daemon, daemon_out = retry_on_address_in_use(start)
-        listen = foreground(listen_cmd.replace(ZENOH_README, f"tcp/127.0.0.1:{zenoh_port}"),
-                            tmp_path, env)  # fmt: skip
-        received = re.search(r"rate: received=(\d+) gaps=0", listen)
-        assert received and int(received[1]) >= 20, listen
-        live = [line for line in listen.splitlines() if line.startswith("#")]
-        assert live and not any("NO_CALIBRATION" in line for line in live), listen
-        # kill %1 %2
-        for proc in (sim, daemon):
-            proc.send_signal(signal.SIGTERM)
-        assert daemon.wait(STEP_TIMEOUT_S) == 0
-        assert sim.wait(STEP_TIMEOUT_S) == 0
-        summary = re.search(r"frames in (\d+), published (\d+)", daemon_out.text())
-        assert summary and int(summary[2]) >= 20
+    listen, daemon_out, daemon_err = retry_on_address_in_use(attempt)
+    received = re.search(r"rate: received=(\d+) gaps=0", listen)
+    assert received and int(received[1]) >= 20, listen
+    live = [line for line in listen.splitlines() if line.startswith("#")]
+    assert live and not any("NO_CALIBRATION" in line for line in live), listen
+    summary = re.search(r"frames in (\d+), published (\d+)", daemon_out)
+    assert summary and int(summary[2]) >= 20, daemon_err

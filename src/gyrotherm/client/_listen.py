@@ -10,6 +10,11 @@ latest state message; ``gaps`` = gap count / missing messages on the rate stream
 latency as :class:`gyrotherm.client.Subscriber` measures it.) It exits after
 ``--count`` rate messages or ``--timeout-s`` seconds, printing per-stream totals.
 
+It first says on stderr what it waits for (the key expressions and the endpoint),
+and gives up when no message at all (rate, state or health) arrived within
+``--timeout-s`` or, without it, :data:`NOTHING_TIMEOUT_S` (30 s), with a hint
+(is ``gyrotherm run`` up, is the endpoint right) instead of waiting forever.
+
 Exit status: 0 when ``--count`` was reached, or without ``--count`` when at least
 one message arrived (or on Ctrl-C); 1 otherwise; 2 on a usage or configuration error.
 """
@@ -27,6 +32,9 @@ from gyrotherm.client._stats import LatencyStats, StreamStats
 from gyrotherm.client._subscriber import Subscriber
 from gyrotherm.codecs._wire import HealthMessage, RateMessage, StateMessage, StatusFlags
 
+#: Without ``--timeout-s``: give up when nothing at all arrived within this long, s.
+NOTHING_TIMEOUT_S = 30.0
+
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
@@ -41,7 +49,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--zenoh-config", default=None, metavar="JSON5",
                    help="zenoh config file used unchanged (replaces --connect)")  # fmt: skip
     p.add_argument("--count", type=int, default=None, help="stop after N rate messages")
-    p.add_argument("--timeout-s", type=float, default=None, help="stop after S seconds")
+    p.add_argument("--timeout-s", type=float, default=None,
+                   help="stop after S seconds (default: run on, but give up after "
+                        f"{NOTHING_TIMEOUT_S:g} s when nothing at all arrived)")
     p.add_argument("--max-hz", type=float, default=10.0, help="live lines per second (10)")
     return p
 
@@ -110,15 +120,24 @@ class _Latest:
 def _run(
     sub: Subscriber, latest: _Latest, count: int | None, timeout_s: float | None, max_hz: float
 ) -> int:
-    """Print live lines until ``count`` rate messages or ``timeout_s``; return the count."""
+    """Print live lines until ``count`` rate messages or ``timeout_s``; return the count.
+
+    Returns early when nothing at all arrived within ``timeout_s`` or
+    :data:`NOTHING_TIMEOUT_S` (the caller tells the user why).
+    """
     min_period_s = 1.0 / max_hz if max_hz > 0 else 0.0
-    deadline = None if timeout_s is None else time.monotonic() + timeout_s
+    start = time.monotonic()
+    deadline = None if timeout_s is None else start + timeout_s
+    nothing_deadline = start + (NOTHING_TIMEOUT_S if timeout_s is None else timeout_s)
     received = 0
     last_rate: RateMessage | None = None
     last_print = -math.inf
     while count is None or received < count:
         wait_s = 0.1 if deadline is None else min(0.1, deadline - time.monotonic())
         if wait_s <= 0:
+            break
+        if (received == 0 and latest.state is None and latest.health is None
+                and time.monotonic() >= nothing_deadline):
             break
         for msg in sub.rates(timeout_s=wait_s):
             received += 1
@@ -162,6 +181,13 @@ def listen_main(argv: list[str] | None = None) -> int:
         return 2
     received = 0
     interrupted = False
+    base = sub.keys.rate.rsplit("/", 1)[0]
+    via = (f"with zenoh config {args.zenoh_config}" if args.zenoh_config is not None
+           else "via " + ", ".join(connect))
+    wait_s = NOTHING_TIMEOUT_S if args.timeout_s is None else args.timeout_s
+    print(f"gyrotherm listen: waiting for {base}/{{rate,state,health}} {via} "
+          f"(giving up after {wait_s:g} s without a message; --timeout-s)",
+          file=sys.stderr, flush=True)
     try:
         with sub:
             try:
@@ -172,7 +198,14 @@ def listen_main(argv: list[str] | None = None) -> int:
     finally:
         if session is not None:
             session.close()
-    print(f"summary: {sub.keys.rate.rsplit('/', 1)[0]}")
+    if not interrupted and not any(getattr(stats, n).received for n in ("rate", "state",
+                                                                         "health")):
+        print(f"gyrotherm listen: nothing from {base} in {wait_s:g} s {via}. Is the daemon "
+              "up (`gyrotherm run` logs 'up:'; `systemctl status gyrotherm`), and is the "
+              "endpoint right (--connect, or the daemon's [zenoh] listen)? The names "
+              "(--vehicle/--sensor) must match its config. --timeout-s S waits longer.",
+              file=sys.stderr, flush=True)
+    print(f"summary: {base}")
     for name in ("rate", "state", "health"):
         print("  " + _summary_line(name, getattr(stats, name)))
     h = latest.health

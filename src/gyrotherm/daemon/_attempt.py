@@ -9,17 +9,26 @@ waits of at most :data:`STOP_POLL_S`, so a signal is honoured within one
 (:meth:`Attempt.abandon`) is left to finish on its thread; whatever it opens
 after that is closed at once.
 
-Retries wait :class:`Backoff` delays: 0.1 s, doubling, capped.
+Retries wait :class:`Backoff` delays: 0.1 s, doubling, capped. At exit the Zenoh
+session is closed on a worker thread too, waited for at most
+:data:`SESSION_CLOSE_WAIT_S` (a frozen peer makes zenoh wait 10 s).
 """
 
 from __future__ import annotations
 
+import logging
+import math
 import threading
 import time
 from collections.abc import Callable
 from typing import Generic, TypeVar
 
+import zenoh
+
+from gyrotherm._errors import GyrothermError
+
 T = TypeVar("T")
+log = logging.getLogger("gyrotherm.daemon")
 
 #: Longest a wait goes without looking at the stop event, s.
 STOP_POLL_S = 0.05
@@ -104,3 +113,38 @@ def wait_for(done: threading.Event, stopping: Callable[[], bool], timeout_s: flo
             break
         done.wait(min(left, STOP_POLL_S))
     return done.is_set()
+
+
+def open_session(zconf: zenoh.Config, stopping: Callable[[], bool]) -> zenoh.Session | None:
+    """zenoh.open on a worker thread (a client may wait for its router); None on a stop."""
+    attempt = Attempt(lambda: zenoh.open(zconf), lambda s: s.close(), "gyrotherm-zenoh-open")
+    if not wait_for(attempt.done, stopping, math.inf):
+        attempt.abandon()
+        return None
+    try:
+        return attempt.result()
+    except zenoh.ZError as exc:
+        raise GyrothermError(f"cannot open zenoh session: {exc}") from exc
+
+
+#: Longest the daemon waits for the Zenoh session to close at exit, s (zenoh's own
+#: bound is 10 s; a frozen peer makes it wait that long).
+SESSION_CLOSE_WAIT_S = 2.0
+
+
+def close_session(session: zenoh.Session) -> None:
+    """session.close() on a worker thread, waited for at most SESSION_CLOSE_WAIT_S."""
+
+    def close() -> None:
+        try:
+            session.close()
+        except zenoh.ZError as exc:
+            log.warning("zenoh session close: %s", exc)
+        finally:
+            done.set()
+
+    done = threading.Event()
+    threading.Thread(target=close, name="gyrotherm-zenoh-close", daemon=True).start()
+    if not done.wait(SESSION_CLOSE_WAIT_S):
+        log.warning("zenoh session still closing after %g s (a frozen peer?): not waiting",
+                    SESSION_CLOSE_WAIT_S)

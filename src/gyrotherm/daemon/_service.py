@@ -40,7 +40,6 @@ from typing import Any
 
 import zenoh
 
-from gyrotherm._errors import GyrothermError
 from gyrotherm._zenoh import keys, session_config
 from gyrotherm.bus import FrameSource
 from gyrotherm.codecs import FrameDecoder
@@ -52,7 +51,7 @@ from gyrotherm.codecs._wire import (
     encode_health,
 )
 from gyrotherm.compensation import Calibration, read_calibration
-from gyrotherm.daemon._attempt import Attempt, wait_for
+from gyrotherm.daemon._attempt import close_session, open_session
 from gyrotherm.daemon._buskeeper import BusKeeper
 from gyrotherm.daemon._config import DaemonConfig
 from gyrotherm.daemon._pipeline import Counters, Pipeline
@@ -60,29 +59,6 @@ from gyrotherm.daemon._sdnotify import Notifier
 from gyrotherm.daemon._sink import _ZenohSink, bound_publishing
 
 log = logging.getLogger("gyrotherm.daemon")
-
-
-#: Longest the daemon waits for the Zenoh session to close at exit, s (zenoh's own
-#: bound is 10 s; a frozen peer makes it wait that long).
-SESSION_CLOSE_WAIT_S = 2.0
-
-
-def _close_session(session: zenoh.Session) -> None:
-    """session.close() on a worker thread, waited for at most SESSION_CLOSE_WAIT_S."""
-
-    def close() -> None:
-        try:
-            session.close()
-        except zenoh.ZError as exc:
-            log.warning("zenoh session close: %s", exc)
-        finally:
-            done.set()
-
-    done = threading.Event()
-    threading.Thread(target=close, name="gyrotherm-zenoh-close", daemon=True).start()
-    if not done.wait(SESSION_CLOSE_WAIT_S):
-        log.warning("zenoh session still closing after %g s (a frozen peer?): not waiting",
-                    SESSION_CLOSE_WAIT_S)
 
 
 @dataclass(frozen=True)
@@ -158,17 +134,6 @@ class Daemon:
 
     # --- the loop --------------------------------------------------------------------
 
-    def _open_session(self, zconf: zenoh.Config) -> zenoh.Session | None:
-        """zenoh.open on a worker thread (a client may wait for its router); None on stop."""
-        attempt = Attempt(lambda: zenoh.open(zconf), lambda s: s.close(), "gyrotherm-zenoh-open")
-        if not wait_for(attempt.done, self._stopping, math.inf):
-            attempt.abandon()
-            return None
-        try:
-            return attempt.result()
-        except zenoh.ZError as exc:
-            raise GyrothermError(f"cannot open zenoh session: {exc}") from exc
-
     def _log_stop_reason(self) -> None:
         if self._signalled is not None:
             log.info("signal %s: stopping", signal.Signals(self._signalled).name)
@@ -189,10 +154,10 @@ class Daemon:
             # every resource is released in reverse order, whatever fails later
             log.info("starting: zenoh session, then the bus %s (for at most %g s)",
                      self._keeper.where, cfg.can.start_timeout_s)
-            session = self._open_session(zconf)
+            session = open_session(zconf, self._stopping)
             if session is None:
                 return self._summary(None)
-            stack.callback(_close_session, session)
+            stack.callback(close_session, session)
             sink = _ZenohSink(session, cfg)
             stack.callback(sink.undeclare)
             self._sink = sink
