@@ -6,6 +6,7 @@ import ipaddress
 import json
 import os
 import socket
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -408,11 +409,18 @@ def test_protect_applies_in_client_mode(protected: bool) -> None:
         client.declare_subscriber("gyrotherm/**", lambda s: got.append(str(s.key_expr)))
         client.declare_queryable("sync/q", lambda q: q.reply("sync/q", b"ok"))
         pub = other.declare_publisher(k.rate)
+        querier = other.declare_querier("sync/q", timeout=10)
+        # the client declared its subscriber before its queryable, on one link: once
+        # the querier matches, the router knows both
+        matched = threading.Event()
+        listener = querier.declare_matching_listener(lambda st: st.matching and matched.set())
+        assert querier.matching_status.matching or matched.wait(10)
+        listener.undeclare()
         for _ in range(3):
             pub.put(b"forged")
             # the router forwards the put, then this query, on the same link: when the
             # reply is back, the client's subscriber has seen the put if it passed
-            assert [r.ok is not None for r in other.get("sync/q", timeout=10)] == [True]
+            assert [r.ok is not None for r in querier.get()] == [True]
             if got:
                 break
         assert got == ([] if protected else [k.rate])

@@ -484,18 +484,26 @@ def _arm_rogue(session: zenoh.Session) -> dict[str, Any]:
 
 def _daemon_reply(session: zenoh.Session, daemon_id: str) -> bool:
     """Query the calibration (round trip over the rogue's link); True when the
-    daemon's own answer came back."""
+    daemon's own answer came back. Asked again (bounded) while a session that just
+    connected has not learnt the daemon's queryable yet."""
     key = f"gyrotherm/{VEHICLE}/{SENSOR}/calibration"
-    ids = []
-    # no consolidation: the rogue's own queryables answer too, on the same key
-    for reply in session.get(key, target=zenoh.QueryTarget.ALL,
-                             consolidation=zenoh.ConsolidationMode.NONE, timeout=WAIT_S):
-        if reply.ok is not None:
-            try:
-                ids.append(decode_calibration_info(reply.ok.payload.to_bytes()).calibration_id)
-            except Exception:  # a forged or foreign payload: not the daemon's
-                continue
-    return daemon_id in ids
+    pause = threading.Event()  # never set: a bounded pause between two asks
+    deadline = time.monotonic() + WAIT_S
+    while time.monotonic() < deadline:
+        ids = []
+        # no consolidation: the rogue's own queryables answer too, on the same key
+        for reply in session.get(key, target=zenoh.QueryTarget.ALL,
+                                 consolidation=zenoh.ConsolidationMode.NONE, timeout=WAIT_S):
+            if reply.ok is not None:
+                try:
+                    ids.append(
+                        decode_calibration_info(reply.ok.payload.to_bytes()).calibration_id)
+                except Exception:  # a forged or foreign payload: not the daemon's
+                    continue
+        if daemon_id in ids:
+            return True
+        pause.wait(0.1)
+    return False
 
 
 # ------------------------------------------------------------------ the check
@@ -608,6 +616,7 @@ def test_forged_calibration_reply_reaches_the_subscriber_only_without_protection
         _arm_rogue(rogue)
         # declarations precede the query on the rogue's link: the daemon knows them now
         assert _daemon_reply(rogue, daemon._calibration_id)
+        assert _daemon_reply(viewer, daemon._calibration_id)  # the viewer is connected
         ids = _exact_key_reply_ids(viewer)
         assert daemon._calibration_id in ids
         assert (FORGED_ID in ids) is not protected, ids
