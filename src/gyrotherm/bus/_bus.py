@@ -18,53 +18,37 @@ Contract (python-can's :class:`can.BusABC` shape, with units in the names):
 * Both have an idempotent ``shutdown()``, an ``is_shutdown`` property, and are
   context managers that shut down on exit.
 
-:class:`BusAdapter` makes any python-can bus (``virtual``, ``socketcand``,
-``socketcan`` on a vehicle) both a source and a sink, so code written against
-these interfaces runs unchanged on a real bus or on the simulator's
+:class:`BusAdapter` makes any python-can bus (``virtual``, ``socketcan`` on a
+vehicle) both a source and a sink; :class:`~gyrotherm.bus._socketcand.SocketcandBus`
+(gyrotherm's own socketcand client) is both too, so code written against these
+interfaces runs unchanged on a real bus or on the simulator's
 :class:`~gyrotherm.sim._socketcand.SocketcandServer`. :func:`open_bus` opens the
-python-can buses gyrotherm supports and rejects bad options with
+buses gyrotherm supports and rejects bad options with
 :class:`gyrotherm.ConfigError` naming the field, the limit and the value.
 """
 
 from __future__ import annotations
 
 import errno
-import logging
 import socket
 import threading
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
 from dataclasses import dataclass
 from types import TracebackType
-from typing import Any, Self
+from typing import TYPE_CHECKING, Any, Self
 
 import can
 
 from gyrotherm._errors import ConfigError
 
+if TYPE_CHECKING:
+    from gyrotherm.bus._socketcand import SocketcandBus
+
 INTERFACES = ("virtual", "socketcan", "socketcand")
 """The python-can interfaces :func:`open_bus` accepts."""
 
 _ITER_POLL_S = 0.1  # how often an iterating consumer re-checks ``is_shutdown``
-_SOCKETCAND_LOGGER = "can.interfaces.socketcand.socketcand"
-
-
-class _DropPartialReadWarnings(logging.Filter):
-    """Drop python-can's socketcand warning for a TCP read that ends mid-frame.
-
-    Its client reads 1024 bytes at a time and logs "Got incomplete message =>
-    waiting for more data" at WARNING each time a read splits a frame, which is
-    normal TCP behaviour and happens thousands of times a second at high rates.
-    """
-
-    def filter(self, record: logging.LogRecord) -> bool:
-        return not str(record.msg).startswith("Got incomplete message")
-
-
-def _quiet_socketcand_client() -> None:
-    logger = logging.getLogger(_SOCKETCAND_LOGGER)
-    if not any(isinstance(f, _DropPartialReadWarnings) for f in logger.filters):
-        logger.addFilter(_DropPartialReadWarnings())
 
 
 @dataclass(frozen=True, slots=True)
@@ -255,37 +239,55 @@ def open_bus(
     host: str | None = None,
     port: int | None = None,
     receive_own_messages: bool = False,
-) -> BusAdapter:
-    """Open a python-can bus as a :class:`BusAdapter`.
+    handshake_timeout_s: float | None = None,
+) -> BusAdapter | SocketcandBus:
+    """Open a bus as a :class:`FrameSource` and :class:`FrameSink`.
 
     * ``virtual``: python-can's in-process bus; ``channel`` names it. Frames keep
       the sender's timestamps (``preserve_timestamps``).
     * ``socketcan``: a Linux CAN interface (``can0`` on a vehicle); ``bitrate`` is
       informative only (set it with ``ip link``).
-    * ``socketcand``: a socketcand server at ``host``:``port`` serving ``channel``.
-      The TCP port is probed first (at most :data:`SOCKETCAND_PROBE_TIMEOUT_S`):
-      python-can itself would retry a refused connection in a busy loop for 10 s,
-      logging each attempt, which would stall a caller such as the daemon's
-      processing loop (and its watchdog) while a server is down. python-can's
-      per-read "Got incomplete message" warnings are filtered out (normal TCP
-      splitting, thousands a second at high rates).
+    * ``socketcand``: a socketcand server at ``host``:``port`` serving ``channel``,
+      read by gyrotherm's own client :class:`~gyrotherm.bus._socketcand.SocketcandBus`
+      (never raises on what the peer sends; malformed items come back as
+      :class:`TransportItem`). The TCP port is probed first (at most
+      :data:`SOCKETCAND_PROBE_TIMEOUT_S`), then connect and handshake take at most
+      ``handshake_timeout_s`` (default
+      :data:`~gyrotherm.bus._socketcand.HANDSHAKE_TIMEOUT_S`); a peer that accepts
+      and then does not speak the protocol raises :class:`gyrotherm.BusError`.
 
-    Configuration files and ``CAN_*`` environment variables of python-can are
-    ignored: only these arguments count. Raises :class:`gyrotherm.ConfigError`
-    naming the field for a bad option, and (chained from the cause) when the bus
-    cannot be opened.
+    The python-can buses (``virtual``, ``socketcan``) come wrapped in a
+    :class:`BusAdapter`; their configuration files and ``CAN_*`` environment
+    variables are ignored: only these arguments count. Raises
+    :class:`gyrotherm.ConfigError` naming the field for a bad option, and
+    (chained from the cause) when the bus cannot be opened.
     """
     _check_options(interface, channel, bitrate, host, port, receive_own_messages)
-    kwargs: dict[str, Any] = {}
-    if bitrate is not None:
-        kwargs["bitrate"] = bitrate
+    if handshake_timeout_s is not None and (
+        isinstance(handshake_timeout_s, bool)
+        or not isinstance(handshake_timeout_s, int | float)
+        or not 0 < handshake_timeout_s <= 3600
+    ):
+        raise ConfigError(
+            f"handshake_timeout_s: must be a number of seconds in (0, 3600], "
+            f"got {handshake_timeout_s!r}"
+        )
     if interface == "socketcand":
+        from gyrotherm.bus._socketcand import HANDSHAKE_TIMEOUT_S, SocketcandBus
+
         assert host is not None and port is not None  # _check_options
         _probe_socketcand(host, port, channel)
-        kwargs.update(host=host, port=port)
-        _quiet_socketcand_client()
-    else:
-        kwargs["receive_own_messages"] = receive_own_messages
+        return SocketcandBus.connect(
+            host,
+            port,
+            channel,
+            handshake_timeout_s=(
+                HANDSHAKE_TIMEOUT_S if handshake_timeout_s is None else handshake_timeout_s
+            ),
+        )
+    kwargs: dict[str, Any] = {"receive_own_messages": receive_own_messages}
+    if bitrate is not None:
+        kwargs["bitrate"] = bitrate
     if interface == "virtual":
         # keep the sender's timestamps: they carry the sensor (simulation) time
         kwargs["preserve_timestamps"] = True
@@ -294,15 +296,13 @@ def open_bus(
     except OSError as exc:
         if interface == "socketcan":
             raise _socketcan_error(channel, exc) from exc
-        where = f" at {host}:{port}" if interface == "socketcand" else ""
         raise ConfigError(
-            f"interface {interface!r}, channel {channel!r}{where}: cannot open the bus ({exc})"
+            f"interface {interface!r}, channel {channel!r}: cannot open the bus ({exc})"
         ) from exc
     except can.CanError as exc:
         if interface == "socketcan" and isinstance(exc.__cause__, OSError):
             raise _socketcan_error(channel, exc.__cause__) from exc
-        where = f" at {host}:{port}" if interface == "socketcand" else ""
         raise ConfigError(
-            f"interface {interface!r}, channel {channel!r}{where}: cannot open the bus ({exc})"
+            f"interface {interface!r}, channel {channel!r}: cannot open the bus ({exc})"
         ) from exc
     return BusAdapter(bus)
