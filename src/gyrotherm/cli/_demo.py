@@ -16,17 +16,13 @@ import socket
 import tempfile
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from gyrotherm.cli._offline import paper_tables
-from gyrotherm.client import Subscriber
-from gyrotherm.codecs import FrameEncoder
-from gyrotherm.codecs._wire import RateMessage, StateMessage
-from gyrotherm.daemon import Daemon, RunSummary, parse_config
-from gyrotherm.sim import SocketcandServer
-from gyrotherm.sim._stream import FlushingSink, frames_from_run, play
+if TYPE_CHECKING:  # the demo's modules (simulator, client, daemon) load when it runs
+    from gyrotherm.codecs._wire import RateMessage, StateMessage
+    from gyrotherm.daemon import RunSummary
 
 
 def _free_port() -> int:
@@ -69,6 +65,8 @@ def _rms(values: Any) -> float:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
+    from gyrotherm.cli._offline import paper_tables
+
     print("== 1. Fit: the paper's chamber experiment, simulated ==", flush=True)
     valid, cal = paper_tables(args)  # the eq. 12 calibration, streamed below
     print(f"\n== 2. Stream: {valid.name} as CAN frames → daemon → Zenoh → client "
@@ -97,6 +95,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _stream(run: Any, cal_path: Path, *, speed: float) -> tuple[RunSummary, _LiveView, Any]:
+    from gyrotherm.client import Subscriber
+    from gyrotherm.codecs import FrameEncoder
+    from gyrotherm.daemon import Daemon, parse_config
+    from gyrotherm.sim import SocketcandServer
+    from gyrotherm.sim._stream import FlushingSink, frames_from_run, play
+
     zport = _free_port()
     view = _LiveView(every_s=300.0)
     with SocketcandServer(host="127.0.0.1", port=0) as server:

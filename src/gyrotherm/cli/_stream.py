@@ -33,22 +33,15 @@ import threading
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from types import FrameType
+from typing import TYPE_CHECKING
 
 from gyrotherm._errors import ConfigError, GyrothermError
 from gyrotherm.bus import FrameSink, open_bus
 from gyrotherm.codecs import DEFAULT_DBC_PATH, FrameEncoder, read_run
-from gyrotherm.sim._experiment import chamber_runs
-from gyrotherm.sim._socketcand import SocketcandServer
-from gyrotherm.sim._stream import (
-    CandumpSink,
-    FlushingSink,
-    FrameStream,
-    PlayStats,
-    TeeSink,
-    frames_from_candump,
-    frames_from_run,
-    play,
-)
+
+if TYPE_CHECKING:  # the simulator is imported when the command runs, not when registered
+    from gyrotherm.sim._socketcand import SocketcandServer
+    from gyrotherm.sim._stream import FrameStream, PlayStats
 
 INTERFACES = ("socketcand-server", "socketcand", "socketcan", "virtual", "none")
 DEFAULT_HOST, DEFAULT_PORT, DEFAULT_HEATING_MIN = "127.0.0.1", 29536, 60.0
@@ -130,6 +123,9 @@ def _serves(args: argparse.Namespace) -> bool:
 
 
 def _frames(args: argparse.Namespace) -> FrameStream:
+    from gyrotherm.sim._experiment import chamber_runs
+    from gyrotherm.sim._stream import frames_from_candump, frames_from_run
+
     if args.candump is not None:
         return frames_from_candump(args.candump, dbc_path=args.dbc)
     encoder = FrameEncoder(args.dbc)
@@ -195,6 +191,9 @@ def _summary(stats: PlayStats, extra: dict[str, object]) -> str:
 
 def cmd_stream(args: argparse.Namespace) -> int:
     """Run ``gyrotherm sim stream`` (see the module docstring); returns the exit status."""
+    from gyrotherm.sim._socketcand import SocketcandServer
+    from gyrotherm.sim._stream import CandumpSink, FlushingSink, TeeSink, play
+
     _check(args)
     quiet = bool(getattr(args, "quiet", False))
     frames = _frames(args)
