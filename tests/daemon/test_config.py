@@ -81,6 +81,14 @@ def test_shipped_configs_load(name: str) -> None:
         ('vehicle = "v"\nsensor = "a"\n[can]\ninterface = "virtual"\nhost = "h"',
          "apply only to interface 'socketcand'"),
         ('vehicle = "v"\nsensor = "a"\n[can]\nbitrate = 2000000', "bitrate = 2000000"),
+        ('vehicle = "v"\nsensor = "a"\n[can]\nstart_timeout_s = 0',
+         r"\[can\]: start_timeout_s = 0 is outside \[0.5, 600\]"),
+        ('vehicle = "v"\nsensor = "a"\n[can]\nstart_timeout_s = "soon"',
+         "key 'start_timeout_s' must be int or float, got 'soon'"),
+        ('vehicle = "v"\nsensor = "a"\n[zenoh]\npublish_block_max_s = 5',
+         r"\[zenoh\]: publish_block_max_s = 5 is outside \[0.01, 2\]"),
+        ('vehicle = "v"\nsensor = "a"\n[zenoh]\npublish_block_max_s = nan',
+         r"publish_block_max_s = nan is outside"),
     ],
 )
 def test_bad_configs_name_the_key(tmp_path: Path, toml: str, message: str) -> None:
@@ -106,3 +114,23 @@ def test_client_mode_listens_nowhere_by_default() -> None:
     cfg = parse_config({"vehicle": "v", "sensor": "s",
                         "zenoh": {"mode": "client", "connect": ["tcp/127.0.0.1:7447"]}})
     assert cfg.zenoh.listen == ()
+
+
+def test_start_and_publish_bounds_defaults_and_zenoh_setting() -> None:
+    from gyrotherm._zenoh import session_config
+    from gyrotherm.daemon._sink import bound_publishing
+
+    cfg = parse_config({"vehicle": "v", "sensor": "a"})
+    assert cfg.can.start_timeout_s == 20.0  # fits the unit's TimeoutStartSec=30s
+    assert cfg.zenoh.publish_block_max_s == 0.5  # well under WatchdogSec/2 = 2.5 s
+    cfg = parse_config({"vehicle": "v", "sensor": "a", "can": {"start_timeout_s": 3},
+                        "zenoh": {"publish_block_max_s": 0.25}})
+    assert (cfg.can.start_timeout_s, cfg.zenoh.publish_block_max_s) == (3.0, 0.25)
+    zconf = session_config(mode="peer", listen=[], connect=[])
+    bound_publishing(zconf, 0.25)
+    block = "transport/link/tx/queue/congestion_control/block/wait_before_close"
+    assert zconf.get_json(block) == "250000"  # µs
+    assert zconf.get_json("transport/link/tcp/so_sndbuf") == "131072"
+    zconf.insert_json5("transport/link/tcp/so_sndbuf", "65536")  # a file's own value stays
+    bound_publishing(zconf, 0.25)
+    assert zconf.get_json("transport/link/tcp/so_sndbuf") == "65536"

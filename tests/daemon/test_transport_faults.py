@@ -49,6 +49,7 @@ def _stop_cleanly(daemon: DaemonProc) -> tuple[int, int, dict[str, int]]:
     finally:
         daemon.kill()
     err = daemon.err.text()
+    print(f"\nSIGTERM → exit in {elapsed:.2f} s")
     assert elapsed < STOP_BOUND_S, f"SIGTERM took {elapsed:.1f} s\n{err}"
     assert daemon.proc.returncode == 0, err
     assert "signal SIGTERM: stopping" in err
