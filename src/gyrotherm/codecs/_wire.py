@@ -91,6 +91,13 @@ class StatusFlags(enum.IntFlag):
     #: bit 8: the latest temperature frame's status signal is not 0: the device
     #: reports a fault (its reading is still used; the meaning is device-defined).
     SENSOR_FAULT = 1 << 8
+    #: bit 9 (client side): a rate message's corrected, raw or bias value is NaN or
+    #: ±inf. Never sent by the daemon: :func:`~gyrotherm.codecs.decode_rate` sets it
+    #: on decoding, whatever the publisher, so no consumer sees such a sample as clean.
+    NON_FINITE = 1 << 9
+    #: bit 10: the calibration evaluated to a non-finite bias (or overflowed) at the
+    #: current T, ΔT: ``bias_dps`` is 0 and the rate is the raw rate.
+    BIAS_INVALID = 1 << 10
 
 
 @dataclass(frozen=True, slots=True)

@@ -6,6 +6,11 @@ docs/wire-format.md. ``decode_*`` accept ``bytes``, ``bytearray`` or
 and every field's type and range, and raise :class:`gyrotherm.DecodeError`
 naming the message, field, index and value. Trailing elements (fields appended
 within the version) are ignored; unknown flag bits are kept.
+
+A rate message whose corrected, raw or bias values are not all finite (NaN,
+±inf) is decoded, not refused (NaN is the wire's "not available"), with
+:attr:`StatusFlags.NON_FINITE` added to its flags: a consumer testing
+``if msg.flags:`` never takes it for a clean sample.
 """
 
 from __future__ import annotations
@@ -70,7 +75,9 @@ def _opt_finite(v: Any, i: int, name: str, what: str) -> float | None:
 
 
 _FLOAT_ONLY = {float}
-_FLAGS_CACHE = {v: StatusFlags(v) for v in range(512)}  # every combination of bits 0-8
+_FLAGS_CACHE = {v: StatusFlags(v) for v in range(2048)}  # every combination of bits 0-10
+_NON_FINITE = int(StatusFlags.NON_FINITE)
+_isfinite = math.isfinite
 
 
 def _to_flags(v: int) -> StatusFlags:
@@ -146,8 +153,11 @@ _APPENDED: dict[MessageKind, list[tuple[str, _Check, Any]]] = {
 
 
 def _build_rate(v: list[Any]) -> RateMessage:
+    flags = v[12]
+    if not all(map(_isfinite, v[3:12])):
+        flags = _to_flags(int(flags) | _NON_FINITE)
     return RateMessage(v[0], v[1], v[2], (v[3], v[4], v[5]), (v[6], v[7], v[8]),
-                       (v[9], v[10], v[11]), v[12])  # fmt: skip
+                       (v[9], v[10], v[11]), flags)  # fmt: skip
 
 
 def _build_state(v: list[Any]) -> StateMessage:
@@ -201,7 +211,8 @@ def _unpack(payload: Payload, what: str) -> list[Any]:
 
 
 def decode_rate(payload: Payload) -> RateMessage:
-    """Decode a rate payload; DecodeError names the bad field and value."""
+    """Decode a rate payload; DecodeError names the bad field and value. Flags gain
+    ``NON_FINITE`` when a rate, raw rate or bias value is NaN or ±inf."""
     a = _unpack(payload, "rate")
     # Fast path (the hot one): a well-formed version-1 rate array of plain floats.
     if len(a) >= 15 and a[0] == 1 and a[1] == SCHEMA_VERSION:
@@ -213,6 +224,10 @@ def decode_rate(payload: Payload) -> RateMessage:
             and set(map(type, a[3:14])) == _FLOAT_ONLY
             and math.isfinite(t0) and math.isfinite(t1)
         ):  # fmt: skip
+            # finite values sum to a finite number unless they overflow: then look closer
+            s = a[5] + a[6] + a[7] + a[8] + a[9] + a[10] + a[11] + a[12] + a[13]
+            if not s - s == 0.0 and not all(map(_isfinite, a[5:14])):
+                flags |= _NON_FINITE
             return RateMessage(seq, t0, t1, (a[5], a[6], a[7]), (a[8], a[9], a[10]),
                                (a[11], a[12], a[13]), _to_flags(flags))  # fmt: skip
     return _decode_fields(a, MessageKind.RATE, "rate", _build_rate)

@@ -14,7 +14,8 @@ sum(drops.values())`` at all times. Reasons: the decoder's reject reasons;
 reuses its ``seq``); ``no_subscriber`` (the sink sent the message but no
 subscriber matched it — router or link down, or nobody subscribed — so nobody
 received it; its ``seq`` is spent, which is how a subscriber that comes back
-sees the gap); ``bad_timestamp`` (a non-finite frame time stamp); the
+sees the gap); ``bad_timestamp`` (a time stamp outside its stream's window,
+see *Time stamps* below); the
 ``reason`` of a :class:`gyrotherm.bus.TransportItem` (something read from the
 link that is not a frame, e.g. ``transport_malformed``);
 ``internal_error`` (an unexpected exception while processing the frame: logged,
@@ -25,6 +26,33 @@ slow subscriber gave it up — see :mod:`gyrotherm.daemon._sink`).
 (a link that dies with messages in flight) are seen only as ``seq`` gaps.
 Before the first temperature frame rates are published uncorrected
 (bias 0) with ``TEMPERATURE_STALE | ESTIMATOR_WARMUP`` set.
+
+Time stamps (docs/model.md, "Time stamps the daemon believes"). Each stream
+(rate, temperature) has a window around its latest accepted stamp ``t_ref``,
+``W = max(max_time_jump_s, stale_after_s)`` (default 60 s):
+
+* a rate frame is accepted when ``|t − t_ref| ≤ W``, ``t_ref`` the largest
+  accepted rate stamp (steps back and repeated stamps inside the window are
+  published as before, and cannot walk ``t_ref`` back);
+* a temperature frame is accepted when ``t_ref < t ≤ t_ref + W``: strictly newer
+  and not absurdly far ahead, so the estimator only ever sees its own recent past;
+* any other frame (NaN, ±inf, |t| > ``MAX_ABS_TIME_S`` = 10¹² s, a jump beyond
+  ``W``, a step back or repeat in the temperature stream) is dropped as
+  ``bad_timestamp`` and changes no state; while the latest temperature frame
+  was so dropped, every message carries ``TEMPERATURE_STALE``;
+* a time base change (sensor reboot, clock step) is recognised when
+  ``time_base_frames`` (default 5) consecutive out-of-window frames of one
+  stream are strictly increasing with steps ≤ ``W``: the last of them is
+  accepted as the new ``t_ref`` (the temperature stream also restarts the
+  estimator: ``ESTIMATOR_WARMUP`` for the next 20 readings), i.e. at most 4
+  frames per stream are lost. The first frame of a stream needs only
+  ``|t| ≤ MAX_ABS_TIME_S``.
+
+So a burst of fewer than ``time_base_frames`` bad stamps per stream changes
+nothing but the drop count (and the stale flag until the next good temperature
+frame): the next good frames give exactly the messages of a stream that never
+contained the burst. The check costs one subtraction and two comparisons per
+rate frame.
 """
 
 from __future__ import annotations
@@ -35,7 +63,7 @@ from collections import Counter
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from gyrotherm._errors import PublishError
+from gyrotherm._errors import ConfigError, PublishError
 from gyrotherm.bus import TransportItem
 from gyrotherm.codecs import FrameDecoder, RateSample, Rejection, RejectReason, TemperatureSample
 from gyrotherm.codecs._wire import (
@@ -56,8 +84,15 @@ WARMUP_UPDATES = 20
 PUBLISH_ERROR = "publish_error"
 #: Drop reason: the message was sent (``seq`` spent) but no subscriber matched it.
 NO_SUBSCRIBER = "no_subscriber"
-#: Drop reason: the frame's time stamp is not a finite number of seconds.
+#: Drop reason: the frame's time stamp is outside its stream's window (module docstring).
 BAD_TIMESTAMP = "bad_timestamp"
+#: Default half-width of a stream's time stamp window, s (at least ``stale_after_s``).
+MAX_TIME_JUMP_S = 60.0
+#: Default number of consecutive consistent out-of-window frames that change the time base.
+TIME_BASE_FRAMES = 5
+#: Largest |time stamp| ever accepted, s (10¹² s ≈ 31 700 years: Unix-epoch and
+#: power-on clocks are far inside; float spacing there is still 0.12 ms).
+MAX_ABS_TIME_S = 1e12
 #: Drop reason: an unexpected exception while processing the frame (logged).
 INTERNAL_ERROR = "internal_error"
 _ZERO = (0.0, 0.0, 0.0)
@@ -102,7 +137,27 @@ class Pipeline:
         calibration: Calibration | None,
         estimator: EstimatorConfig | None = None,
         check_counters: bool = True,
+        max_time_jump_s: float = MAX_TIME_JUMP_S,
+        time_base_frames: int = TIME_BASE_FRAMES,
     ) -> None:
+        if not (math.isfinite(max_time_jump_s) and max_time_jump_s > 0):
+            raise ConfigError(f"max_time_jump_s = {max_time_jump_s!r}: must be a positive "
+                              "number of seconds")
+        if isinstance(time_base_frames, bool) or not (
+                isinstance(time_base_frames, int) and time_base_frames >= 2):
+            raise ConfigError(f"time_base_frames = {time_base_frames!r}: must be an integer >= 2")
+        self._max_time_jump_s = float(max_time_jump_s)
+        self._max_jump_s = self._max_time_jump_s  # W, set with the estimator below
+        self._time_base_frames = time_base_frames
+        # per stream: reference stamp and the run of out-of-window stamps (module docstring)
+        self._rate_ref_s = math.nan
+        self._rate_run_s = math.nan
+        self._rate_run_n = 0
+        self._temperature_run_s = math.nan
+        self._temperature_run_n = 0
+        self._temperature_dropping = False  # the latest temperature frame: bad_timestamp
+        self.time_base_changes: dict[str, int] = {"rate": 0, "temperature": 0}
+        """Time base changes accepted per stream (module docstring)."""
         self._decoder = decoder
         self._check_counters = check_counters
         self._sink = sink
@@ -133,6 +188,7 @@ class Pipeline:
             self._estimator = TemperatureEstimator(est)
             self.last_estimate = None
         self.calibration = calibration
+        self._max_jump_s = max(self._max_time_jump_s, self._estimator.config.stale_after_s)
         self._refresh_bias()
 
     @property
@@ -145,8 +201,9 @@ class Pipeline:
         """Handle one CAN frame received at wall-clock ``receive_time_s`` (s).
 
         Never raises: a frame that cannot be handled is dropped with a reason
-        (``bad_timestamp`` for a non-finite time stamp, ``internal_error`` for an
-        unexpected exception, logged), and the stream goes on.
+        (``bad_timestamp`` for a time stamp outside its stream's window, see the
+        module docstring; ``internal_error`` for an unexpected exception, logged),
+        and the stream goes on.
         """
         self._received += 1
         if type(msg) is TransportItem:  # read from the link, but not a frame
@@ -155,13 +212,21 @@ class Pipeline:
         try:
             result = self._decoder.decode(msg)
             kind = type(result)
-            if kind is RateSample or kind is TemperatureSample:
-                if not math.isfinite(result.time_s):
-                    self._drops[BAD_TIMESTAMP] += 1
-                elif kind is RateSample:
+            if kind is RateSample:
+                t = result.time_s
+                w = self._max_jump_s
+                if -w <= t - self._rate_ref_s <= w or self._rate_time_base(t):  # NaN: False
+                    if t > self._rate_ref_s:
+                        self._rate_ref_s = t
+                    self._rate_run_n = 0
                     self._on_rate(result, receive_time_s)  # type: ignore[arg-type]
                 else:
-                    self._on_temperature(result, receive_time_s)  # type: ignore[arg-type]
+                    self._drops[BAD_TIMESTAMP] += 1
+                    counter = result.counter  # type: ignore[union-attr]
+                    if counter is not None:  # received, not lost: no COUNTER_JUMP next
+                        self._last_counter = counter
+            elif kind is TemperatureSample:
+                self._on_temperature(result, receive_time_s)  # type: ignore[arg-type]
             else:
                 assert isinstance(result, Rejection)
                 self._drops[result.reason.value] += 1
@@ -198,9 +263,52 @@ class Pipeline:
         else:  # False: nobody subscribed; a string: the sink's drop reason
             self._drops[NO_SUBSCRIBER if routed is False else routed] += 1
 
+    def _time_run(self, t: float, run_s: float, run_n: int) -> int:
+        """Length of the run of out-of-window stamps that ``t`` makes: ``run_n + 1`` when
+        it continues the run (``run_s < t ≤ run_s + W``), 1 when it starts one, 0
+        when it can never be a time stamp (non-finite or beyond MAX_ABS_TIME_S)."""
+        if not -MAX_ABS_TIME_S <= t <= MAX_ABS_TIME_S:
+            return 0
+        if run_n and run_s < t <= run_s + self._max_jump_s:
+            return run_n + 1
+        return 1
+
+    def _rate_time_base(self, t: float) -> bool:
+        """A rate stamp outside ``|t − t_ref| ≤ W``: True when it is accepted (the
+        stream's first stamp, or the frame completing a time base change)."""
+        n = self._time_run(t, self._rate_run_s, self._rate_run_n)
+        first = math.isnan(self._rate_ref_s)
+        if n and (first or n >= self._time_base_frames):
+            if not first:
+                self.time_base_changes["rate"] += 1
+                log.warning("rate frames: time base changed from %r s to %r s "
+                            "(%d consecutive frames)", self._rate_ref_s, t, n)
+            self._rate_ref_s = t
+            return True
+        self._rate_run_s, self._rate_run_n = t, n
+        return False
+
     def _on_temperature(self, s: TemperatureSample, receive_time_s: float) -> None:
-        self.last_estimate = self._estimator.update(s.time_s, s.temperature_c)
-        self._last_temperature_s = s.time_s
+        t = s.time_s
+        last = self._last_temperature_s
+        if not last < t <= last + self._max_jump_s:  # NaN: True
+            n = self._time_run(t, self._temperature_run_s, self._temperature_run_n)
+            first = last == -math.inf
+            if not n or not (first or n >= self._time_base_frames):
+                self._temperature_run_s, self._temperature_run_n = t, n
+                self._drops[BAD_TIMESTAMP] += 1
+                self._temperature_dropping = True
+                self._flags |= StatusFlags.TEMPERATURE_STALE
+                return
+            if not first:  # a new time base: the estimator starts again on this reading
+                self.time_base_changes["temperature"] += 1
+                log.warning("temperature frames: time base changed from %r s to %r s "
+                            "(%d consecutive frames); estimator restarted", last, t, n)
+                self._estimator.reset()
+        self._temperature_run_n = 0
+        self._temperature_dropping = False
+        self.last_estimate = self._estimator.update(t, s.temperature_c)
+        self._last_temperature_s = t
         self._sensor_status = s.status or 0
         self._refresh_bias()
         self._publish_state(s.time_s, receive_time_s)
@@ -208,6 +316,9 @@ class Pipeline:
     # --- temperature-rate work ---------------------------------------------------------
 
     def _refresh_bias(self) -> None:
+        """Bias and flags from the latest estimate. A calibration that evaluates to a
+        non-finite bias, or overflows, at this (T, ΔT) gives bias 0 (the published
+        rate is the raw rate, never a non-finite one) and ``BIAS_INVALID``."""
         est = self.last_estimate
         flags = StatusFlags.NONE
         if est is None or math.isnan(est.temperature_c):
@@ -223,17 +334,28 @@ class Pipeline:
             if self.calibration is None:
                 self._bias = _ZERO
             else:
-                b = self.calibration.bias_at(est.temperature_c, est.delta_t_c)
-                self._bias = (b.bias_dps.get("x", 0.0), b.bias_dps.get("y", 0.0),
-                              b.bias_dps.get("z", 0.0))
-                if b.t_clamped:
-                    flags |= StatusFlags.T_CLAMPED
-                if b.dt_clamped:
-                    flags |= StatusFlags.DELTA_T_CLAMPED
+                try:
+                    b = self.calibration.bias_at(est.temperature_c, est.delta_t_c)
+                    bias = (b.bias_dps.get("x", 0.0), b.bias_dps.get("y", 0.0),
+                            b.bias_dps.get("z", 0.0))
+                    valid = all(math.isfinite(v) for v in bias)
+                except ArithmeticError:  # x**p of an absurd scaling overflows
+                    valid = False
+                if valid:
+                    self._bias = bias
+                    if b.t_clamped:
+                        flags |= StatusFlags.T_CLAMPED
+                    if b.dt_clamped:
+                        flags |= StatusFlags.DELTA_T_CLAMPED
+                else:
+                    self._bias = _ZERO
+                    flags |= StatusFlags.BIAS_INVALID
         if self.calibration is None:
             flags |= StatusFlags.NO_CALIBRATION
         if self._sensor_status:
             flags |= StatusFlags.SENSOR_FAULT
+        if self._temperature_dropping:
+            flags |= StatusFlags.TEMPERATURE_STALE
         self._flags = flags
 
     def _publish_state(self, sensor_time_s: float, receive_time_s: float) -> None:
@@ -256,13 +378,20 @@ class Pipeline:
             self._drops[NO_SUBSCRIBER if routed is False else routed] += 1
 
     def tick(self) -> None:
-        """Housekeeping (≈ once a second): predict-only when temperature frames stopped."""
+        """Housekeeping (≈ once a second): predict-only to the latest rate frame's stamp
+        ``t`` when temperature frames stopped, i.e. while ``stale_after_s < t −
+        t_temperature ≤ W`` (the window, module docstring). Beyond ``W`` the estimate
+        is held, still flagged stale: a longer extrapolation of T means nothing, and
+        a larger difference means the rate and temperature streams are in different
+        time bases (one of them has just changed it). ``t`` passed the rate window,
+        so no absurd stamp reaches the estimator."""
         t = self.last_sensor_time_s
         if (t is not None and self._estimator.initialised
-                and t - self._last_temperature_s > self._estimator.config.stale_after_s):
+                and self._estimator.config.stale_after_s < t - self._last_temperature_s
+                <= self._max_jump_s):
             try:
                 self.last_estimate = self._estimator.predict(t)
-            except (ArithmeticError, ValueError):  # absurd time stamps: keep the state
+            except (ArithmeticError, ValueError):  # defensive: predict() does not raise
                 log.warning("predict-only step to t = %r s failed; estimate kept", t)
             self._refresh_bias()
 

@@ -18,6 +18,17 @@ re-initialises it; smaller steps back are fused at the filter's time.
 Without measurements the state is only predicted, and flagged stale once
 ``stale_after_s`` passes.
 
+Robustness (any float time stamp, any float reading): the filter never
+predicts across more than :data:`MAX_PREDICT_S` (10⁶ s): a reading stamped
+further ahead re-initialises it (``time_resets``), a predict-only target
+further ahead leaves the state as it is (the estimate turns stale). So
+dt ≤ 10⁶ s and ``Q(dt)`` ≤ q·10¹⁸ stay finite, and no time stamp can raise.
+Should a step still leave ``x`` or ``P`` non-finite (readings near the float
+range), the filter re-initialises on the reading, or, in a predict-only step,
+forgets its state (``non_finite_resets``): an initialised filter's ``x`` and
+``P`` are always finite. The daemon's pipeline keeps absurd time stamps away
+from the filter altogether (``max_time_jump_s``, docs/model.md).
+
 The filterpy ``KalmanFilter`` is private: callers see frozen
 :class:`TemperatureEstimate` values, never the mutable ``x`` / ``P``.
 """
@@ -35,6 +46,11 @@ from numpy.typing import NDArray
 from gyrotherm._errors import ConfigError
 
 FloatArray = NDArray[np.float64]
+
+#: Longest single prediction step, s (10⁶ s ≈ 11.6 days): a numeric safety bound,
+#: far beyond any gap over which a prediction still means something
+#: (σ_T = √(q·dt³/3) ≈ 180 °C at the default q and dt = 10⁶ s).
+MAX_PREDICT_S = 1e6
 
 
 @dataclass(frozen=True)
@@ -153,7 +169,11 @@ class TemperatureEstimator:
         """Re-initialisations after repeated rejections."""
         self.time_resets = 0
         """Re-initialisations because a reading's time was more than ``stale_after_s``
-        before the filter's time (the time base stepped back)."""
+        before the filter's time (the time base stepped back) or more than
+        :data:`MAX_PREDICT_S` after it."""
+        self.non_finite_resets = 0
+        """Re-initialisations (or, predict-only, forgotten states) because a step left
+        ``x`` or ``P`` non-finite."""
 
     @property
     def config(self) -> EstimatorConfig:
@@ -174,10 +194,25 @@ class TemperatureEstimator:
         self._rejected = False
         self._updates = 1
 
+    def reset(self) -> None:
+        """Forget the state: the next reading initialises the filter (counters kept)."""
+        self._time_s = None
+        self._last_reading_s = None
+        self._updates = 0
+        self._rejections = 0
+        self._rejected = False
+
+    def _finite(self) -> bool:
+        x, p = self._kf.x, self._kf.P
+        return math.isfinite(float(x[0, 0]) + float(x[1, 0])) and math.isfinite(
+            float(p[0, 0]) + float(p[0, 1]) + float(p[1, 0]) + float(p[1, 1]))
+
     def _predict_to(self, time_s: float) -> None:
+        """Predict to ``time_s``; the caller guarantees 0 < dt ≤ MAX_PREDICT_S or
+        dt ≤ 0 (a no-op)."""
         assert self._time_s is not None
         dt = time_s - self._time_s
-        if dt <= 0.0:
+        if not dt > 0.0:
             return
         # F and Q depend on dt only: rebuild when it changes by more than 1 ppb.
         # Sampled time stamps (i * 0.1 s) differ in the last bits from step to
@@ -210,12 +245,18 @@ class TemperatureEstimator:
         if self._time_s is None:
             self._init(time_s, temperature_c)
             return
-        if time_s < self._time_s - self._cfg.stale_after_s:
-            # the time base stepped back (clock step, restarted log): start again
+        if (time_s < self._time_s - self._cfg.stale_after_s
+                or time_s > self._time_s + MAX_PREDICT_S):
+            # the time base stepped back (clock step, restarted log) or jumped
+            # beyond any meaningful prediction: start again
             self.time_resets += 1
             self._init(time_s, temperature_c)
             return
         self._predict_to(time_s)
+        if not self._finite():  # readings near the float range
+            self.non_finite_resets += 1
+            self._init(time_s, temperature_c)
+            return
         innovation = temperature_c - float(self._kf.x[0, 0])
         s = float(self._kf.P[0, 0]) + self._cfg.measurement_variance_c2
         if innovation * innovation > self._cfg.gate_sigma**2 * s:
@@ -228,6 +269,10 @@ class TemperatureEstimator:
             return
         self._z[0, 0] = temperature_c
         self._kf.update(self._z)
+        if not self._finite():
+            self.non_finite_resets += 1
+            self._init(max(time_s, self._time_s), temperature_c)
+            return
         self._rejections = 0
         self._rejected = False
         self._updates += 1
@@ -237,19 +282,28 @@ class TemperatureEstimator:
         return float(self._kf.x[0, 0]), float(self._kf.x[1, 0])
 
     def predict(self, time_s: float) -> TemperatureEstimate:
-        """Advance to ``time_s`` without a reading (predict-only); a non-finite
-        ``time_s`` leaves the state unchanged."""
-        if self._time_s is not None and math.isfinite(time_s):
+        """Advance to ``time_s`` without a reading (predict-only). A non-finite
+        ``time_s``, or one more than :data:`MAX_PREDICT_S` after the filter's
+        time, leaves the state unchanged (the estimate is stale by then); one
+        before the filter's time is a no-op. Never raises."""
+        t0 = self._time_s
+        if t0 is not None and t0 < time_s <= t0 + MAX_PREDICT_S:
             self._predict_to(time_s)
+            if not self._finite():
+                self.non_finite_resets += 1
+                self.reset()
         return self.estimate(time_s)
 
     def estimate(self, time_s: float | None = None) -> TemperatureEstimate:
-        """The current estimate; ``time_s`` (s) decides the stale flag only."""
+        """The current estimate; ``time_s`` (s) decides the stale flag only: stale when
+        ``max(time_s, filter time) − last reading > stale_after_s``, and always for a
+        non-finite ``time_s`` (the estimate's ``time_s`` is then the filter's)."""
         if self._time_s is None:
             nan = math.nan
             t = nan if time_s is None else time_s
             return TemperatureEstimate(t, nan, nan, nan, nan, nan, nan, True, self._rejected, 0)
-        now = self._time_s if time_s is None else max(time_s, self._time_s)
+        forced_stale = time_s is not None and not math.isfinite(time_s)
+        now = self._time_s if time_s is None or forced_stale else max(time_s, self._time_s)
         x, p = self._kf.x, self._kf.P
         tau = self._cfg.tau_s
         rate_std = math.sqrt(max(float(p[1, 1]), 0.0))
@@ -262,7 +316,7 @@ class TemperatureEstimator:
             temperature_std_c=math.sqrt(max(float(p[0, 0]), 0.0)),
             rate_std_c_per_s=rate_std,
             delta_t_std_c=tau * rate_std,
-            stale=(now - self._last_reading_s) > self._cfg.stale_after_s,
+            stale=forced_stale or (now - self._last_reading_s) > self._cfg.stale_after_s,
             rejected=self._rejected,
             updates=self._updates,
         )
