@@ -30,6 +30,7 @@ from gyrotherm.bus import (
     TransportItem,
     open_bus,
 )
+from gyrotherm.bus._socketcand_items import parse_frame
 from gyrotherm.sim._socketcand import SocketcandServer, demo_frame
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -254,3 +255,14 @@ def test_shutdown_wakes_a_waiting_reader_and_is_idempotent() -> None:
         assert not reader.is_alive() and result == [None]
         bus.shutdown()
         assert bus.is_shutdown and bus.recv(0) is None
+
+
+def test_parsed_frame_is_a_complete_can_message() -> None:
+    """The reader fills can.Message's slots itself (speed): every slot as the constructor."""
+    msg = parse_frame(b"1ABCDEF0", b"1700000000.000042", b"0102AB", "vcan0")
+    want = can.Message(timestamp=1700000000.000042, arbitration_id=0x1ABCDEF0,
+                       is_extended_id=True, data=b"\x01\x02\xab", channel="vcan0", is_rx=True)
+    assert type(msg) is can.Message
+    slots = [s for s in can.Message.__slots__ if s != "__weakref__"]
+    assert {s: getattr(msg, s) for s in slots} == {s: getattr(want, s) for s in slots}
+    assert msg.equals(want) and isinstance(msg.data, bytearray)

@@ -135,7 +135,10 @@ class SocketcandBus(FrameSource, FrameSink):
     def recv(self, timeout_s: float | None = None) -> can.Message | TransportItem | None:
         ready = self._ready
         if ready:
-            return self._give(ready.popleft())
+            item = ready.popleft()
+            if type(item) is TransportItem:
+                self._count(item)
+            return item
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
         while not self._lost and not self._closed.is_set():
             try:
@@ -154,9 +157,12 @@ class SocketcandBus(FrameSource, FrameSink):
                 break
             self._take(self._view[:n].tobytes())
             if ready:
-                return self._give(ready.popleft())
+                break
         if ready:
-            return self._give(ready.popleft())
+            item = ready.popleft()
+            if type(item) is TransportItem:
+                self._count(item)
+            return item
         if deadline is None:
             self._closed.wait()
         else:
@@ -168,15 +174,13 @@ class SocketcandBus(FrameSource, FrameSink):
         self._splitter.feed(chunk, out)
         self._ready.extend(out)
 
-    def _give(self, item: Result) -> Result:
-        if type(item) is TransportItem:
-            counts = self.counts
-            counts[item.reason] += 1
-            n = counts[item.reason]
-            if n & (n - 1) == 0:  # occurrences 1, 2, 4, 8 … are logged
-                log.warning("%s: %s #%d (occurrences 1, 2, 4, 8 … are logged): %s",
-                            self.where, item.reason, n, item.detail)
-        return item
+    def _count(self, item: TransportItem) -> None:
+        counts = self.counts
+        counts[item.reason] += 1
+        n = counts[item.reason]
+        if n & (n - 1) == 0:  # occurrences 1, 2, 4, 8 … are logged
+            log.warning("%s: %s #%d (occurrences 1, 2, 4, 8 … are logged): %s",
+                        self.where, item.reason, n, item.detail)
 
     def _lose(self, why: str) -> None:
         if not self._lost and not self._closed.is_set():
