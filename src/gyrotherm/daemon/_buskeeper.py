@@ -7,8 +7,9 @@
   request ends the wait within :data:`~gyrotherm.daemon._attempt.STOP_POLL_S`,
   also while an attempt hangs (a peer that accepts TCP and never answers).
 * **Reopen** (:meth:`BusKeeper.tend`, from the loop's housekeeping): when the
-  source says ``link_lost``, when its ``recv`` returns nothing at once or burns
-  CPU instead of waiting (a dead stream peer), or when no frame came for
+  source says ``link_lost``, when its ``recv`` raises (a CAN interface gone down),
+  returns nothing at once or burns CPU instead of waiting (a dead stream peer),
+  or when no frame came for
   ``reopen_after_s``, the bus is shut down and reopened by attempts on a worker
   thread with the same backoff. Meanwhile :attr:`BusKeeper.bus` is ``None``: the
   loop waits on an event instead of reading, so it keeps petting the watchdog and
@@ -47,6 +48,7 @@ class BusKeeper:
         self._stopping = stopping
         self.bus: FrameSource | None = None
         self.reopens = 0
+        self.failure: BaseException | None = None  # set by the loop: reading raised this
         self._attempt: Attempt[FrameSource] | None = None
         self._backoff = Backoff()
         self._next_attempt_s = 0.0
@@ -129,8 +131,10 @@ class BusKeeper:
             if lost or quiet_s > self._c.reopen_after_s:
                 self.reopens += 1
                 why = ("the link is lost" if bus.link_lost else
+                       f"reading the bus failed ({self.failure})" if self.failure else
                        "the bus returns no frames without waiting (peer gone?)" if suspect else
                        f"no CAN frame for {self._c.reopen_after_s:.1f} s")
+                self.failure = None
                 log.warning("%s: reopening %s (reopen %d)", why, self.where, self.reopens)
                 self.bus = None
                 self._down_since_s = now

@@ -206,35 +206,41 @@ class Daemon:
         quiet = suspect = False
         bus: FrameSource | None = self._bus
         while not stopping():
-            if bus is None:  # down, being reopened: wait, do not spin
-                stop.wait(timeout)
-            elif not quiet:
-                msg = bus.recv(timeout)
-                quiet = msg is None
-                if msg is not None:
-                    recv = bus.recv
-                    process(msg, now_wall())
-                    # drain what is already queued before housekeeping
-                    for _ in range(256):
-                        msg = recv(0.0)
-                        if msg is None:
-                            break
+            try:
+                if bus is None:  # down, being reopened: wait, do not spin
+                    stop.wait(timeout)
+                elif not quiet:
+                    msg = bus.recv(timeout)
+                    quiet = msg is None
+                    if msg is not None:
+                        recv = bus.recv
                         process(msg, now_wall())
-                    self._last_frame = mono()
-            else:  # quiet: a recv must wait, not return at once or burn CPU (dead peer)
-                cpu0, wall0 = cpu(), mono()
-                msg = bus.recv(timeout)
-                if msg is None:
-                    wall = mono() - wall0
-                    if wall < 0.5 * timeout:
-                        suspect = True
-                        stop.wait(timeout - wall)
-                    elif cpu() - cpu0 > 0.5 * wall:
-                        suspect = True
-                else:
-                    quiet = False
-                    process(msg, now_wall())
-                    self._last_frame = mono()
+                        # drain what is already queued before housekeeping
+                        for _ in range(256):
+                            msg = recv(0.0)
+                            if msg is None:
+                                break
+                            process(msg, now_wall())
+                        self._last_frame = mono()
+                else:  # quiet: a recv must wait, not return at once or burn CPU (dead peer)
+                    cpu0, wall0 = cpu(), mono()
+                    msg = bus.recv(timeout)
+                    if msg is None:
+                        wall = mono() - wall0
+                        if wall < 0.5 * timeout:
+                            suspect = True
+                            stop.wait(timeout - wall)
+                        elif cpu() - cpu0 > 0.5 * wall:
+                            suspect = True
+                    else:
+                        quiet = False
+                        process(msg, now_wall())
+                        self._last_frame = mono()
+            except Exception as exc:  # the bus failed at run time (CAN error, OSError …)
+                if not reopen:
+                    raise
+                keeper.failure, suspect = exc, True
+                stop.wait(timeout)
             if mono() >= next_tick:
                 next_tick = mono() + min(period, 0.25)
                 self._housekeeping(pipeline, sink)
