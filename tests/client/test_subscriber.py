@@ -347,3 +347,55 @@ def test_servo_loop_example_runs(daemon: Daemon) -> None:
         assert int(values["seq"]) == s
         # command = -gain · corrected yaw rate, gain 2.0 by default
         assert float(values["command_dps"]) == pytest.approx(-2.0 * 0.1 * s, abs=1e-6)
+
+
+# ------------------------------------------------------------ non-finite samples
+def _rate_payload(seq: int, values: list[float]) -> bytes:
+    """A rate payload built by hand from the layout (docs/wire-format.md), not encode_rate."""
+    out: bytes = msgpack.packb([1, 1, seq, 1.5, time.time(), *values, 0])
+    return out
+
+
+NON_FINITE_CASES = [(i, v) for i in range(9) for v in (math.nan, math.inf, -math.inf)]
+
+
+@pytest.mark.parametrize(("index", "value"), NON_FINITE_CASES)
+def test_decoder_flags_a_non_finite_value_in_any_axis(index: int, value: float) -> None:
+    from gyrotherm.codecs._wire_decode import decode_rate
+
+    values = [0.1, -0.2, 0.3, 0.15, -0.1, 0.55, 0.05, 0.1, 0.25]
+    values[index] = value
+    fast = decode_rate(_rate_payload(3, values))  # all floats: the decoder's fast path
+    slow = decode_rate(msgpack.packb([1, 1, 3, 1, 2.0, *values, 0]))  # an int: checked path
+    for msg in (fast, slow):
+        assert msg.flags == StatusFlags.NON_FINITE
+        got = (*msg.rate_dps, *msg.raw_rate_dps, *msg.bias_dps)
+        assert math.isnan(got[index]) if math.isnan(value) else got[index] == value
+
+
+def test_decoder_leaves_finite_samples_alone_even_when_their_sum_overflows() -> None:
+    from gyrotherm.codecs._wire_decode import decode_rate
+
+    big = [1e308, 1e308, 1e308, 1e308, 1e308, 0.0, -1e308, 0.0, 0.0]  # sum: inf, all finite
+    assert decode_rate(_rate_payload(0, big)).flags == StatusFlags.NONE
+    assert decode_rate(_rate_payload(0, [0.0] * 9)).flags == StatusFlags.NONE
+
+
+def test_subscriber_flags_and_counts_non_finite_rates(daemon: Daemon) -> None:
+    received: list[RateMessage] = []
+    with Subscriber(VEHICLE, SENSOR, connect=[daemon.endpoint], on_rate=received.append) as sub:
+        pub = daemon.publisher(daemon.keys.rate)
+        daemon.wait_matched(pub)
+        n = 0
+        for index, value in NON_FINITE_CASES:
+            values = [0.1] * 9
+            values[index] = value
+            pub.put(_rate_payload(n, values))
+            n += 1
+        pub.put(_rate_payload(n, [0.1] * 9))  # a clean one last
+        assert sub.wait_for(lambda s: s.rate.received == n + 1, timeout_s=WAIT_S)
+        st = sub.stats().rate
+        assert st.non_finite == len(NON_FINITE_CASES) == n
+        assert all(m.flags & StatusFlags.NON_FINITE for m in received[:n])
+        assert received[n].flags == StatusFlags.NONE
+        assert st.undecodable == 0 and st.gaps == 0

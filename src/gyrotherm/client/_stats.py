@@ -131,6 +131,9 @@ class StreamStats:
     last_seq: int | None
     last_error: str | None
     latency: LatencyStats
+    non_finite: int = 0
+    """Messages delivered with ``StatusFlags.NON_FINITE``: a rate, raw rate or bias
+    value NaN or ±inf (rate stream; set by the decoder, never by the daemon)."""
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,10 @@ subscriber keeps:
   reservoir-sampled p50/p99.
 * counts of undecodable payloads (never raised into zenoh) and of messages the
   bounded iteration queue dropped (oldest first: a servo loop wants fresh data).
+* **non-finite samples**: a rate message whose corrected, raw or bias value is NaN
+  or ±inf is delivered with :attr:`StatusFlags.NON_FINITE` set (by the decoder,
+  whatever the publisher) and counted in ``StreamStats.non_finite``; a servo loop
+  that skips samples with ``flags`` set never feeds one to its controller.
 
 One zenoh subscriber on ``gyrotherm/<vehicle>/<sensor>/*`` feeds all three streams
 from one callback thread, so callbacks (and accounting) of different streams run in
@@ -48,6 +52,7 @@ from gyrotherm.codecs._wire import (
     Payload,
     RateMessage,
     StateMessage,
+    StatusFlags,
 )
 from gyrotherm.codecs._wire_decode import (
     decode_calibration_info,
@@ -57,6 +62,7 @@ from gyrotherm.codecs._wire_decode import (
 )
 
 _log = logging.getLogger(__name__)
+_NON_FINITE = StatusFlags.NON_FINITE
 _M = TypeVar("_M", RateMessage, StateMessage, HealthMessage)
 
 
@@ -83,6 +89,7 @@ class _Stream(Generic[_M]):
         self._seq = SequenceTracker()
         self._latency = LatencyTracker(reservoir_size=reservoir_size)
         self._received = self._undecodable = self._dropped = self._callback_errors = 0
+        self._non_finite = 0
         self._last_error: str | None = None
         self.closed = False
 
@@ -100,6 +107,8 @@ class _Stream(Generic[_M]):
             return
         with self._cond:
             self._received += 1
+            if msg.flags & _NON_FINITE:
+                self._non_finite += 1
             self._seq.observe(msg.seq)
             self._latency.add(now_s - msg.receive_time_s)
             if self.callback is None:
@@ -146,12 +155,16 @@ class _Stream(Generic[_M]):
             return StreamStats(
                 self._received, s.gaps, s.missing, s.resets, s.duplicates, self._undecodable,
                 self._dropped, self._callback_errors, s.last_seq, self._last_error,
-                self._latency.snapshot(),
+                self._latency.snapshot(), self._non_finite,
             )  # fmt: skip
 
 
 class Subscriber:
     """Subscribe to ``gyrotherm/<vehicle>/<sensor>/{rate,state,health}``.
+
+    Never hands over a non-finite rate as clean: a rate message with a NaN or ±inf
+    corrected, raw or bias value carries ``StatusFlags.NON_FINITE`` (bit 9) and is
+    counted in ``stats().rate.non_finite``; test ``msg.flags`` before using a sample.
 
     Without ``session`` a peer session is opened that connects to ``connect``
     (listens nowhere, no scouting) and is closed by :meth:`close`; a given

@@ -339,7 +339,7 @@ class Pipeline:
                     bias = (b.bias_dps.get("x", 0.0), b.bias_dps.get("y", 0.0),
                             b.bias_dps.get("z", 0.0))
                     valid = all(math.isfinite(v) for v in bias)
-                except ArithmeticError:  # x**p of an absurd scaling overflows
+                except (ArithmeticError, ValueError):  # x**p overflows; fsum(inf, -inf)
                     valid = False
                 if valid:
                     self._bias = bias
