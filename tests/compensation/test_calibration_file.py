@@ -57,7 +57,9 @@ _DELETE = object()
 @pytest.mark.parametrize(
     ("path", "value", "message"),
     [
-        ("version", 2, r"field 'version': unsupported calibration version 2"),
+        ("version", 3, r"field 'version': unsupported calibration version 3 "
+         r"\(this gyrotherm reads versions 1, 2\)"),
+        ("version", 2, r"field 'units.time': expected 's', got None"),
         ("schema", "px4", r"field 'schema': expected 'gyrotherm.calibration'"),
         ("scaling.t_ref_c", _DELETE, r"missing field 'scaling.t_ref_c'"),
         ("scaling.t_scale_c", "wide", r"field 'scaling.t_scale_c': expected int/float"),

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from gyrotherm import CalibrationError
 from gyrotherm.analysis import direction_state, lowpass
-from gyrotherm.analysis._effects import BASE_COLUMNS, ExtendedModel, hysteresis_state
+from gyrotherm.analysis._effects import BASE_COLUMNS, ExtendedModel, design, hysteresis_state
 from gyrotherm.compensation import Scaling, ValidRange, get_model
 from gyrotherm.compensation._effects import (
     Cubic,
@@ -88,7 +88,8 @@ def test_hysteresis_follows_the_lagged_temperature() -> None:
 
 def test_full_model_equals_extended_model_bias() -> None:
     """Base polynomial at the kernel's T̂_s and ΔT̂ plus the kernel's bias is the fitted
-    model's bias, every effect at once (coefficients chosen by hand)."""
+    model's bias from the diagnosis' vectorised columns (``design``), every effect at
+    once (coefficients chosen by hand); ``ExtendedModel.bias`` (on the kernel) too."""
     t, temp, dtemp = chamber_like(5000, 5)
     scaling = Scaling(t_ref_c=15.0, t_scale_c=35.0, dt_scale_c=8.0)
     effects = {"thermal_lag": 75.0, "hysteresis": 0.35, "warmup": 400.0, "cubic": 0.0,
@@ -100,8 +101,11 @@ def test_full_model_equals_extended_model_bias() -> None:
     out = kernel.series(t, temp, dtemp)
     x, g = scaling.centre(out.structure_temperature_c, out.delta_t_c)
     base = get_model("paper").design(x, g) @ np.array([*coefficients[:4], 0.7])
-    want = model.bias(t, temp, dtemp, step_s=1.0)
+    names, columns_matrix = design(t, temp, dtemp, scaling, effects, step_s=1.0)
+    assert names == columns
+    want = columns_matrix @ np.array(coefficients) + 0.7
     assert np.max(np.abs(base + out.bias_dps - want)) < 1e-12
+    assert np.max(np.abs(model.bias(t, temp, dtemp) - want)) < 1e-12
     assert np.ptp(want) > 0.1  # the effects are not negligible on this run
     assert not out.flags.any()
 

@@ -31,16 +31,20 @@ searched on a log grid and refined (profile likelihood).
 * ``gradient_quadratic`` (``coefficient_dps_per_c2``): bias += c·ΔT².
 * ``drift`` (``slope_dps_per_h``): bias += s·t/3600.
 
-:func:`add_bias` is the matching simulator extension: it adds a fitted
-extended model's bias to a simulated run, evaluated on the simulator's true
-die temperature and gradient.
+:func:`design` builds the columns for fitting (vectorised, uniform grid).
+:meth:`ExtendedModel.bias` and :func:`add_bias` (the matching simulator
+extension: a fitted model's bias added to a simulated run, evaluated on the
+simulator's true die temperature and gradient) evaluate a fitted model with
+the vehicle's online kernel (:mod:`gyrotherm.compensation._effects`), sample
+by sample at the series' own (irregular) time steps: one implementation of
+the effects for the vehicle, the offline evaluation and the simulator.
 """
 
 from __future__ import annotations
 
 import itertools
 from collections.abc import Callable, Mapping, MutableMapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -49,6 +53,7 @@ from scipy.signal import lfilter
 from gyrotherm._errors import CalibrationError
 from gyrotherm.codecs import Run
 from gyrotherm.compensation import Scaling, Term, get_model
+from gyrotherm.compensation._effects import MIN_TRANSITION_C, Effects, EffectsKernel
 
 FloatArray = NDArray[np.float64]
 
@@ -68,8 +73,6 @@ BASE_COLUMNS = ("T^2", "T", "dT", "T*dT")
 #: Width of the play operator giving the direction of the last move for the residual
 #: statistics and plots (the hysteresis regressor uses its own width), °C.
 DIRECTION_WIDTH_C = 0.25
-#: Smallest hysteresis transition (dead band and saturation), °C.
-MIN_TRANSITION_C = 0.02
 _PLAY_CHUNK = 512
 DESCRIPTIONS: Mapping[str, str] = {
     "thermal_lag": "the bias follows a first-order lag of the sensed temperature",
@@ -258,8 +261,8 @@ def effect_params(
     name: str, coefficient: float, scaling: Scaling, tau_s: float
 ) -> dict[str, float]:
     """Physical parameters of effect ``name`` from its fitted column coefficient."""
-    if name == "thermal_lag":
-        return {"tau_s": tau_s}
+    if name == "thermal_lag":  # the value design() uses (it rounds the lag it caches)
+        return {"tau_s": round(tau_s, 6)}
     if name == "hysteresis":
         return {"amplitude_dps": coefficient, "transition_c": tau_s}
     if name == "warmup":
@@ -303,31 +306,50 @@ class ExtendedModel:
     def paper_physical(self) -> dict[str, float]:
         """Paper-term coefficients in physical units (T, ΔT in °C), with the intercept."""
         spec = get_model("paper")
-        centred = {Term.parse(n): self.coefficient(n) for n in BASE_COLUMNS}
-        vec = np.array([centred.get(t, self.intercept_dps) for t in spec.terms])
-        phys = self.scaling.to_physical(spec, vec)
+        phys = self.scaling.to_physical(spec, np.array(self.base_coefficients()))
         return {t.name: phys[t] for t in spec.terms}
 
+    def base_coefficients(self) -> tuple[float, ...]:
+        """The paper terms' centred coefficients in ``get_model("paper")`` order
+        (T², T, ΔT, T·ΔT, 1), the common intercept last."""
+        spec = get_model("paper")
+        centred = {Term.parse(n): self.coefficient(n) for n in BASE_COLUMNS}
+        return tuple(centred.get(t, self.intercept_dps) for t in spec.terms)
+
+    def online_effects(self, *, t_on_max_s: float | None = None) -> Effects:
+        """The effects for :class:`~gyrotherm.compensation._effects.EffectsKernel`
+        (``cubic`` about ``scaling.t_ref_c``; ``t_on_max_s`` limits a drift)."""
+        params: dict[str, dict[str, float | None]] = {k: dict(v) for k, v in self.params().items()}
+        if "drift" in params and t_on_max_s is not None:
+            params["drift"]["t_on_max_s"] = t_on_max_s
+        return Effects.from_params(params, t_ref_c=self.scaling.t_ref_c)
+
     def bias(
-        self,
-        time_s: FloatArray,
-        temperature_c: FloatArray,
-        delta_t_c: FloatArray,
-        *,
-        step_s: float | None = None,
+        self, time_s: FloatArray, temperature_c: FloatArray, delta_t_c: FloatArray,
     ) -> FloatArray:
-        """Bias (°/s) along a uniformly sampled series (offsets: the common intercept)."""
-        step = step_s if step_s is not None else (
-            float(np.median(np.diff(time_s))) if len(time_s) > 1 else 1.0)
-        _, a = design(time_s, temperature_c, delta_t_c, self.scaling, self.effects, step_s=step)
-        return np.asarray(a @ np.asarray(self.coefficients) + self.intercept_dps)
+        """Bias (°/s) along a series (offsets: the common intercept), t = time since
+        power-on: the online kernel's structure temperature and effects, the paper
+        polynomial at T_s (as the vehicle computes it; no range clamping). Without
+        effects the kernel is the identity on (T, ΔT) and is skipped."""
+        temp = np.asarray(temperature_c, dtype=np.float64)
+        dtemp = np.asarray(delta_t_c, dtype=np.float64)
+        extra = np.zeros(len(temp))
+        effects = self.online_effects()
+        if effects.names:
+            out = EffectsKernel(effects).series(np.asarray(time_s, dtype=np.float64), temp,
+                                                dtemp)
+            temp, dtemp, extra = out.structure_temperature_c, out.delta_t_c, out.bias_dps
+        x, g = self.scaling.centre(temp, dtemp)
+        base = get_model("paper").design(x, g) @ np.asarray(self.base_coefficients())
+        return np.asarray(base + extra, dtype=np.float64)
 
 
 def add_bias(run: Run, model: ExtendedModel, axis: str) -> Run:
     """The simulator extension: ``run`` with ``model``'s bias added to axis ``axis``.
 
     Evaluated on the simulator's truth columns ``true_temperature_c`` and
-    ``true_delta_t_c`` (so effects act on the die, as the physics would).
+    ``true_delta_t_c`` (so effects act on the die, as the physics would), with
+    the online kernel (:meth:`ExtendedModel.bias`) from the run's first row.
     """
     if "true_temperature_c" not in run.extra or "true_delta_t_c" not in run.extra:
         raise CalibrationError(
@@ -339,6 +361,4 @@ def add_bias(run: Run, model: ExtendedModel, axis: str) -> Run:
     rates[axis] = rates[axis] + b
     truth = dict(run.true_bias_dps)
     truth[axis] = truth.get(axis, np.zeros(len(run))) + b
-    from dataclasses import replace
-
     return replace(run, rates_dps=rates, true_bias_dps=truth)

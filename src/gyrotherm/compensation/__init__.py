@@ -1,4 +1,5 @@
-"""Compensation: bias models in T and ΔT, least-squares fitting, calibration files."""
+"""Compensation: bias models in T and ΔT, least-squares fitting, calibration files, and
+the online compensator (base polynomial + effects kernels, one per axis)."""
 
 from gyrotherm.compensation._calibration import (
     BiasEstimate,
@@ -8,6 +9,7 @@ from gyrotherm.compensation._calibration import (
     parse_calibration,
     read_calibration,
 )
+from gyrotherm.compensation._compensator import CompensatedSeries, Compensator
 from gyrotherm.compensation._fit import (
     METHODS,
     HeldOut,
@@ -29,6 +31,8 @@ __all__ = [
     "MODELS",
     "BiasEstimate",
     "Calibration",
+    "CompensatedSeries",
+    "Compensator",
     "ErrorMetrics",
     "HeldOut",
     "Method",

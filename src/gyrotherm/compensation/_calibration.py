@@ -11,9 +11,14 @@ Contract (after PX4's ``TemperatureCompensation.h``):
   the inputs are clamped to the range and a flag is raised: the model never
   extrapolates silently.
 
-File format: JSON, ``"schema": "gyrotherm.calibration"``, ``"version": 1``;
-docs/model.md lists every field. A malformed, partial or wrong-version file
-raises :class:`gyrotherm.CalibrationError` naming the file and field.
+* Effects (version 2, :mod:`._calibration_v2`): per axis, the online kernel
+  (:mod:`._effects`) gives the structure temperature the polynomial is
+  evaluated at and an additive bias; :meth:`Calibration.compensator` holds one
+  kernel per axis (:mod:`._compensator`).
+
+File format: JSON, ``"schema": "gyrotherm.calibration"``, ``"version": 1`` (2 with
+effects); docs/model.md lists every field. A malformed, partial or wrong-version
+file raises :class:`gyrotherm.CalibrationError` naming the file and field.
 """
 
 from __future__ import annotations
@@ -23,21 +28,52 @@ import hashlib
 import json
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from gyrotherm._errors import CalibrationError, ConfigError
+from gyrotherm.compensation._calibration_v2 import (
+    RUNTIME_STATE,
+    TIME_UNIT,
+    VERSION_EFFECTS,
+    effects_to_dict,
+    parse_effects,
+    parse_runtime_state,
+)
+from gyrotherm.compensation._effects import Effects
 from gyrotherm.compensation._models import ModelSpec, Scaling, Term, get_model
 from gyrotherm.estimators import EstimatorConfig
+
+if TYPE_CHECKING:
+    from gyrotherm.compensation._compensator import Compensator
 
 FloatArray = NDArray[np.float64]
 SCHEMA = "gyrotherm.calibration"
 VERSION = 1
+VERSIONS = (VERSION, VERSION_EFFECTS)
 UNITS = {"temperature": "degC", "delta_t": "degC", "rate": "deg/s", "bias": "deg/s"}
+#: Closed objects of a calibration file (dotted path, "" = top level) and their keys in
+#: version 1: any other key is refused (:func:`_check_keys`), as in the TOML config.
+#: Objects not listed are open (``provenance``) or checked where they are parsed
+#: (``coefficients``: axes; ``estimator``: the EstimatorConfig fields).
+KNOWN_KEYS: dict[str, tuple[str, ...]] = {
+    "": ("schema", "version", "units", "model", "scaling", "coefficients",
+         "coefficients_physical", "range", "estimator", "provenance"),
+    "units": tuple(UNITS),
+    "model": ("name", "terms"),
+    "scaling": ("t_ref_c", "t_scale_c", "dt_scale_c"),
+    "range": ("t_min_c", "t_max_c", "dt_min_c", "dt_max_c"),
+    "coefficients_physical": ("x", "y", "z"),
+}
+#: Keys later versions add to :data:`KNOWN_KEYS`: ``{version: {path: keys}}``
+#: (a new key is one line here).
+KEYS_ADDED: dict[int, dict[str, tuple[str, ...]]] = {
+    VERSION_EFFECTS: {"": ("effects", "runtime_state"), "units": (TIME_UNIT[0],)},
+}
 
 
 @dataclass(frozen=True)
@@ -61,6 +97,9 @@ class BiasEstimate:
     bias_dps: Mapping[str, float]
     t_clamped: bool
     dt_clamped: bool
+    flags: int = 0
+    """:class:`~gyrotherm.compensation._effects_state.EffectFlags` of the effects kernels,
+    merged over axes (:meth:`Compensator.step`; 0 from :meth:`Calibration.bias_at`)."""
 
 
 @dataclass(frozen=True)
@@ -73,8 +112,13 @@ class Calibration:
     valid_range: ValidRange
     estimator: EstimatorConfig
     provenance: Mapping[str, Any] = field(default_factory=dict)
+    effects: Mapping[str, Effects] = field(default_factory=dict)
+    """Per axis (absent: none); any effect makes the file version 2."""
 
     def __post_init__(self) -> None:
+        extra = set(self.effects) - set(self.coefficients)
+        if extra:
+            raise CalibrationError(f"effects: axes {sorted(extra)} have no coefficients")
         k = len(self.model.terms)
         if not self.coefficients:
             raise CalibrationError("coefficients: no axis")
@@ -91,6 +135,37 @@ class Calibration:
     def axes(self) -> tuple[str, ...]:
         return tuple(a for a in ("x", "y", "z") if a in self.coefficients)
 
+    @property
+    def version(self) -> int:
+        """File version written: 2 when any axis has effects, else 1."""
+        return VERSION_EFFECTS if any(self.effect_names(a) for a in self.axes) else VERSION
+
+    def effects_of(self, axis: str) -> Effects:
+        return self.effects.get(axis, Effects())
+
+    def effect_names(self, axis: str) -> tuple[str, ...]:
+        return self.effects_of(axis).names
+
+    def compensator(self) -> Compensator:
+        """One online effects kernel per axis, from power-on (:mod:`._compensator`)."""
+        from gyrotherm.compensation._compensator import Compensator
+
+        return Compensator(self)
+
+    def base_bias(self, axis: str, temperature_c: float, delta_t_c: float) -> float:
+        """The polynomial of ``axis`` at one (T, ΔT), °C, as given (no clamping)."""
+        x = (temperature_c - self.scaling.t_ref_c) / self.scaling.t_scale_c
+        g = delta_t_c / self.scaling.dt_scale_c
+        row = [x**term.t_power * g**term.dt_power for term in self.model.terms]
+        return math.fsum(c * v for c, v in zip(self.coefficients[axis], row, strict=True))
+
+    def base_series(self, axis: str, temperature_c: FloatArray, delta_t_c: FloatArray
+                    ) -> FloatArray:
+        """:meth:`base_bias` on arrays (equal to rounding)."""
+        x, g = self.scaling.centre(np.asarray(temperature_c), np.asarray(delta_t_c))
+        bias = self.model.design(x, g) @ np.asarray(self.coefficients[axis])
+        return np.asarray(bias, dtype=np.float64)
+
     def physical_coefficients(self, axis: str) -> dict[str, float]:
         """Coefficients of the model's terms in physical units (T, ΔT in °C)."""
         phys = self.scaling.to_physical(self.model, np.asarray(self.coefficients[axis]))
@@ -106,34 +181,52 @@ class Calibration:
         return t, d, t != temperature_c, d != delta_t_c
 
     def bias_series(
-        self, axis: str, temperature_c: FloatArray, delta_t_c: FloatArray
+        self, axis: str, temperature_c: FloatArray, delta_t_c: FloatArray,
+        time_s: FloatArray | None = None,
     ) -> tuple[FloatArray, NDArray[np.bool_]]:
-        """Bias (°/s) for arrays of T, ΔT (°C) and the mask of clamped rows."""
+        """Bias (°/s) for arrays of T, ΔT (°C) and the mask of clamped rows.
+
+        With effects on ``axis``, ``time_s`` (s since power-on, the run's time
+        column) is required: the axis' kernel runs from the first row (its
+        state starts there, t_on = ``time_s``), :meth:`Compensator.series`."""
+        if self.effect_names(axis):
+            if time_s is None:
+                raise CalibrationError(f"axis {axis} has effects {list(self.effect_names(axis))}"
+                                       ": its bias needs the time since power-on (time_s)")
+            from gyrotherm.compensation._compensator import Compensator
+
+            comp = Compensator(replace(self, coefficients={axis: self.coefficients[axis]},
+                                       effects={axis: self.effects[axis]}))
+            out = comp.series(np.asarray(time_s), np.asarray(temperature_c),
+                              np.asarray(delta_t_c))
+            return np.asarray(out.bias_dps[axis]), out.clamped(axis)
         t, d, tc, dc = self.clamp(np.asarray(temperature_c), np.asarray(delta_t_c))
-        x, g = self.scaling.centre(t, d)
-        design = self.model.design(x, g)
-        bias = design @ np.asarray(self.coefficients[axis])
-        return np.asarray(bias, dtype=np.float64), tc | dc
+        return self.base_series(axis, t, d), tc | dc
 
     def bias_at(self, temperature_c: float, delta_t_c: float) -> BiasEstimate:
-        """Bias per axis at one point (the daemon calls this at the temperature rate)."""
+        """Bias per axis at one point (the daemon calls this at the temperature rate).
+
+        Only for calibrations without effects (version 1): effects need their
+        history, :meth:`compensator` (whose step equals this one without effects)."""
+        if self.version != VERSION:
+            raise CalibrationError(
+                "calibration has effects "
+                f"{ {a: list(self.effect_names(a)) for a in self.axes} }: bias_at cannot "
+                "evaluate them (they need their history); use Calibration.compensator()")
         r = self.valid_range
         t = min(max(temperature_c, r.t_min_c), r.t_max_c)
         d = min(max(delta_t_c, r.dt_min_c), r.dt_max_c)
-        x = (t - self.scaling.t_ref_c) / self.scaling.t_scale_c
-        g = d / self.scaling.dt_scale_c
-        row = [x**term.t_power * g**term.dt_power for term in self.model.terms]
-        bias = {a: math.fsum(c * v for c, v in zip(cs, row, strict=True))
-                for a, cs in self.coefficients.items()}
+        bias = {a: self.base_bias(a, t, d) for a in self.coefficients}
         return BiasEstimate(bias, t != temperature_c, d != delta_t_c)
 
     # --- file I/O -----------------------------------------------------------------
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        v2 = self.version == VERSION_EFFECTS
+        out = {
             "schema": SCHEMA,
-            "version": VERSION,
-            "units": dict(UNITS),
+            "version": self.version,
+            "units": dict([*UNITS.items(), TIME_UNIT]) if v2 else dict(UNITS),
             "model": {"name": self.model.name, "terms": list(self.model.term_names)},
             "scaling": {
                 "t_ref_c": self.scaling.t_ref_c,
@@ -151,6 +244,10 @@ class Calibration:
             "estimator": self.estimator.to_dict(),
             "provenance": dict(self.provenance),
         }
+        if v2:
+            out["effects"] = effects_to_dict(self.effects, self.axes)
+            out["runtime_state"] = dict(RUNTIME_STATE)
+        return out
 
     def save(self, path: str | Path) -> Path:
         """Write the calibration as JSON (atomically: temp file then rename).
@@ -233,6 +330,34 @@ def _value(node: Any, path: str, source: str) -> float:
     return v
 
 
+def known_keys(version: int) -> dict[str, frozenset[str]]:
+    """Keys of each closed object in a file of ``version``: :data:`KNOWN_KEYS` plus
+    :data:`KEYS_ADDED` of every version up to ``version``."""
+    known = {path: set(keys) for path, keys in KNOWN_KEYS.items()}
+    for v, added in KEYS_ADDED.items():
+        if v <= version:
+            for path, keys in added.items():
+                known.setdefault(path, set()).update(keys)
+    return {path: frozenset(keys) for path, keys in known.items()}
+
+
+def _check_keys(data: dict[str, Any], version: int, source: str) -> None:
+    """CalibrationError naming ``source``, the object, the unknown key(s) and the known
+    ones when a closed object holds a key its version does not define (a typo such as
+    ``"scalling"`` or ``"t_min"`` would otherwise be ignored silently)."""
+    for path, keys in known_keys(version).items():
+        node: Any = data
+        for part in path.split(".") if path else ():
+            node = node.get(part) if isinstance(node, dict) else None
+        if not isinstance(node, dict):
+            continue  # missing or not an object: _get names it
+        unknown = set(node) - keys
+        if unknown:
+            where = f"field {path!r}" if path else "the top level"
+            raise CalibrationError(f"{source}: unknown key(s) {sorted(unknown)} in {where}; "
+                                   f"known: {sorted(keys)}")
+
+
 def _parse(data: Any, source: str) -> Calibration:
     if not isinstance(data, dict):
         raise CalibrationError(f"{source}: expected a JSON object at top level")
@@ -240,13 +365,14 @@ def _parse(data: Any, source: str) -> Calibration:
     if schema != SCHEMA:
         raise CalibrationError(f"{source}: field 'schema': expected {SCHEMA!r}, got {schema!r}")
     version = _get(data, "version", int, source)
-    if version != VERSION:
+    if version not in VERSIONS:
         raise CalibrationError(
             f"{source}: field 'version': unsupported calibration version {version} "
-            f"(this gyrotherm reads version {VERSION})"
+            f"(this gyrotherm reads versions {', '.join(map(str, VERSIONS))})"
         )
+    _check_keys(data, version, source)
     units = _get(data, "units", dict, source)
-    for key, unit in UNITS.items():
+    for key, unit in [*UNITS.items(), *([TIME_UNIT] if version == VERSION_EFFECTS else [])]:
         if units.get(key) != unit:
             raise CalibrationError(
                 f"{source}: field 'units.{key}': expected {unit!r}, got {units.get(key)!r}"
@@ -285,6 +411,10 @@ def _parse(data: Any, source: str) -> Calibration:
             estimator=estimator,
             provenance=_get(data, "provenance", dict, source),
         )
+        if version == VERSION_EFFECTS:
+            parse_runtime_state(_get(data, "runtime_state", dict, source), source)
+            cal = replace(cal, effects=parse_effects(_get(data, "effects", dict, source),
+                                                     cal.axes, source))
         _check_physical(data, cal, source)
         return cal
     except ConfigError as exc:

@@ -184,12 +184,16 @@ def fit_per_run(
 
 
 def score(calibration: Calibration, run: RunFeatures) -> list[RunScore]:
-    """Raw and compensated error metrics of ``run`` under ``calibration``, per axis."""
+    """Raw and compensated error metrics of ``run`` under ``calibration``, per axis.
+
+    Effects (version 2) are evaluated online from the run's first row (their
+    runtime state starts at power-on there; t_on = the run's time column)."""
     out = []
     for axis in calibration.axes:
         if axis not in run.rates_dps:
             continue
-        bias, clamped = calibration.bias_series(axis, run.temperature_c, run.delta_t_c)
+        bias, clamped = calibration.bias_series(axis, run.temperature_c, run.delta_t_c,
+                                                run.time_s)
         raw = run.rates_dps[axis]
         truth = run.true_bias_dps.get(axis)
         out.append(RunScore(
