@@ -64,6 +64,7 @@ def test_start_waits_for_the_bus_and_is_ready_only_then(tmp_path: Path,
     try:
         assert daemon.err.wait_for(r"waiting for the bus: attempt 2 failed"), daemon.err.lines
         assert notify.first("READY=1") is None  # no bus yet: not ready
+        assert any("STATUS=waiting for the bus" in m for _, m in notify.messages)
         with SocketcandServer(host="127.0.0.1", port=bus_port) as server:
             opened = notify.wait_for("READY=1")
             assert opened is not None, daemon.err.lines

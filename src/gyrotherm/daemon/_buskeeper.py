@@ -43,9 +43,11 @@ def _shutdown(source: FrameSource) -> None:
 class BusKeeper:
     """Owns the configured bus; not thread-safe (the daemon's loop thread)."""
 
-    def __init__(self, config: CanConfig, stopping: Callable[[], bool]) -> None:
+    def __init__(self, config: CanConfig, stopping: Callable[[], bool],
+                 status: Callable[[str], object] = lambda text: None) -> None:
         self._c = config
         self._stopping = stopping
+        self._status = status  # STATUS= while waiting at start (systemctl status)
         self.bus: FrameSource | None = None
         self.reopens = 0
         self.failure: BaseException | None = None  # set by the loop: reading raised this
@@ -98,6 +100,7 @@ class BusKeeper:
                 delay = min(self._backoff.next_s(), left)
                 log.info("waiting for the bus: attempt %d failed, next in %.1f s: %s",
                          n, delay, exc)
+                self._status(f"waiting for the bus {self.where} (attempt {n} failed: {exc})")
                 if self._pause(delay):
                     return None
                 continue

@@ -95,7 +95,8 @@ class Daemon:
         self._last_frame = time.monotonic()
         self._bus: FrameSource | None = None
         self._signalled: int | None = None  # set by the signal handlers (no locks there)
-        self._keeper = BusKeeper(config.can, self._stopping)
+        self._hup = False
+        self._keeper = BusKeeper(config.can, self._stopping, self._notifier.status)
         if config.calibration is not None:
             self._calibration, self._calibration_id = read_calibration(config.calibration)
         # What the queryable answers, replaced whole by the loop thread (never mutated):
@@ -126,7 +127,7 @@ class Daemon:
             self._signalled = signum
 
         def on_hup(signum: int, frame: FrameType | None) -> None:
-            self._reload.set()
+            self._hup = True  # a plain flag, as for on_stop
 
         signal.signal(signal.SIGTERM, on_stop)
         signal.signal(signal.SIGINT, on_stop)
@@ -253,8 +254,9 @@ class Daemon:
 
     def _housekeeping(self, pipeline: Pipeline, sink: _ZenohSink) -> None:
         self._notifier.watchdog()
-        if self._reload.is_set():
+        if self._reload.is_set() or self._hup:
             self._reload.clear()
+            self._hup = False
             self._do_reload(pipeline)
         now = time.monotonic()
         if now - self._last_health >= self.config.health_period_s:
