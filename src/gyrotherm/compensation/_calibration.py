@@ -56,6 +56,24 @@ SCHEMA = "gyrotherm.calibration"
 VERSION = 1
 VERSIONS = (VERSION, VERSION_EFFECTS)
 UNITS = {"temperature": "degC", "delta_t": "degC", "rate": "deg/s", "bias": "deg/s"}
+#: Closed objects of a calibration file (dotted path, "" = top level) and their keys in
+#: version 1: any other key is refused (:func:`_check_keys`), as in the TOML config.
+#: Objects not listed are open (``provenance``) or checked where they are parsed
+#: (``coefficients``: axes; ``estimator``: the EstimatorConfig fields).
+KNOWN_KEYS: dict[str, tuple[str, ...]] = {
+    "": ("schema", "version", "units", "model", "scaling", "coefficients",
+         "coefficients_physical", "range", "estimator", "provenance"),
+    "units": tuple(UNITS),
+    "model": ("name", "terms"),
+    "scaling": ("t_ref_c", "t_scale_c", "dt_scale_c"),
+    "range": ("t_min_c", "t_max_c", "dt_min_c", "dt_max_c"),
+    "coefficients_physical": ("x", "y", "z"),
+}
+#: Keys later versions add to :data:`KNOWN_KEYS`: ``{version: {path: keys}}``
+#: (a new key is one line here).
+KEYS_ADDED: dict[int, dict[str, tuple[str, ...]]] = {
+    VERSION_EFFECTS: {"": ("effects", "runtime_state"), "units": (TIME_UNIT[0],)},
+}
 
 
 @dataclass(frozen=True)
@@ -312,6 +330,34 @@ def _value(node: Any, path: str, source: str) -> float:
     return v
 
 
+def known_keys(version: int) -> dict[str, frozenset[str]]:
+    """Keys of each closed object in a file of ``version``: :data:`KNOWN_KEYS` plus
+    :data:`KEYS_ADDED` of every version up to ``version``."""
+    known = {path: set(keys) for path, keys in KNOWN_KEYS.items()}
+    for v, added in KEYS_ADDED.items():
+        if v <= version:
+            for path, keys in added.items():
+                known.setdefault(path, set()).update(keys)
+    return {path: frozenset(keys) for path, keys in known.items()}
+
+
+def _check_keys(data: dict[str, Any], version: int, source: str) -> None:
+    """CalibrationError naming ``source``, the object, the unknown key(s) and the known
+    ones when a closed object holds a key its version does not define (a typo such as
+    ``"scalling"`` or ``"t_min"`` would otherwise be ignored silently)."""
+    for path, keys in known_keys(version).items():
+        node: Any = data
+        for part in path.split(".") if path else ():
+            node = node.get(part) if isinstance(node, dict) else None
+        if not isinstance(node, dict):
+            continue  # missing or not an object: _get names it
+        unknown = set(node) - keys
+        if unknown:
+            where = f"field {path!r}" if path else "the top level"
+            raise CalibrationError(f"{source}: unknown key(s) {sorted(unknown)} in {where}; "
+                                   f"known: {sorted(keys)}")
+
+
 def _parse(data: Any, source: str) -> Calibration:
     if not isinstance(data, dict):
         raise CalibrationError(f"{source}: expected a JSON object at top level")
@@ -324,6 +370,7 @@ def _parse(data: Any, source: str) -> Calibration:
             f"{source}: field 'version': unsupported calibration version {version} "
             f"(this gyrotherm reads versions {', '.join(map(str, VERSIONS))})"
         )
+    _check_keys(data, version, source)
     units = _get(data, "units", dict, source)
     for key, unit in [*UNITS.items(), *([TIME_UNIT] if version == VERSION_EFFECTS else [])]:
         if units.get(key) != unit:

@@ -117,7 +117,8 @@ class EstimatorConfig:
         known = {f.name for f in fields(cls)}
         unknown = set(data) - known
         if unknown:
-            raise ConfigError(f"{where}: unknown field(s) {sorted(unknown)}")
+            raise ConfigError(f"{where}: unknown field(s) {sorted(unknown)}; "
+                              f"known: {sorted(known)}")
         try:
             return cls(**data)
         except (TypeError, ConfigError) as exc:
