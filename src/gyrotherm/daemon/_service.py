@@ -262,7 +262,7 @@ class Daemon:
         if now - self._last_health >= self.config.health_period_s:
             self._last_health = now
             pipeline.tick()
-            silent = now - self._last_frame > pipeline.stale_after_s
+            silent = now - self._last_frame > pipeline.stale_after_s or self._bus is None
             health = self._health(pipeline, silent=silent)
             try:
                 sink.health.put(encode_health(health))
