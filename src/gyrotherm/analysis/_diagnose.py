@@ -12,6 +12,8 @@
 3. Select effects (forward selection with held-out and penalised criteria),
    refit the extended model, replay it through the extended simulator, and
    report (schema ``gyrotherm.diagnosis/1``).
+4. Optionally (:func:`export_calibration`) write the chosen extended model as a
+   calibration file for every axis the runs share.
 
 ``gain`` = baseline held-out RMS / model held-out RMS. A finding's
 ``heldout_rms_dps`` and ``gain`` are those of the baseline plus that effect
@@ -37,6 +39,7 @@ from gyrotherm.analysis._compare import (
     compare_simulation,
 )
 from gyrotherm.analysis._effects import EFFECTS, ExtendedModel
+from gyrotherm.analysis._export import EffectsFit, fit_effects
 from gyrotherm.analysis._prep import (
     DEFAULT_TAU_S,
     Prepared,
@@ -232,3 +235,57 @@ def diagnose(
                              seed=seed, replays=replays, features=features)
     return replace(diagnosis, simulation=sim, notes=(*diagnosis.notes, *sim.notes))
 
+
+
+def export_calibration(
+    runs: Sequence[Run],
+    diagnosis: Diagnosis,
+    *,
+    margin: float = 0.10,
+    features: str = "smooth",
+    progress: Callable[[str], None] | None = None,
+) -> EffectsFit:
+    """A calibration of the chosen extended model on every axis all ``runs`` share.
+
+    Effects are chosen per axis: the diagnosis' for its axis, the same forward
+    selection (``margin``, the diagnosis' ``features``) on every other axis;
+    nothing found gives the paper model on that axis. Coefficients and
+    nonlinear parameters are then refitted on every axis with the causal
+    estimator the calibration stores (:func:`~gyrotherm.analysis._export.fit_effects`:
+    the features the vehicle computes; the diagnosis' own ΔT comes from a
+    zero-phase smoother the vehicle cannot run). τ is the diagnosis'.
+    """
+    from dataclasses import replace
+
+    from gyrotherm.compensation import features as estimate
+
+    say = progress or (lambda _msg: None)
+    axes = [a for a in AXES if all(a in r.rates_dps for r in runs)]
+    est = replace(estimator_for([characterise(r, diagnosis.axis) for r in runs]),
+                  tau_s=diagnosis.tau_s)
+    chosen: dict[str, tuple[str, ...]] = {}
+    record: dict[str, dict[str, Any]] = {}
+    for axis in axes:
+        if axis == diagnosis.axis:
+            chosen[axis] = tuple(e for e in EFFECTS if e in diagnosis.extended.effects)
+            record[axis] = {"effects": list(chosen[axis]), "selected_by": "diagnosis",
+                            "gain": diagnosis.gain}
+            continue
+        say(f"selecting effects on axis {axis}")
+        prepared = [prepare(r, axis, est, features=features) for r in runs]
+        scaling = Scaling.from_data(np.concatenate([p.temperature_c for p in prepared]),
+                                    np.concatenate([p.delta_t_c for p in prepared]))
+        selection = select(Selector(prepared, scaling), margin=margin, progress=say)
+        chosen[axis] = tuple(e for e in EFFECTS if e in selection.final.effects)
+        record[axis] = {"effects": list(chosen[axis]), "selected_by": "forward selection",
+                        "gain": selection.baseline.heldout_rms_dps
+                        / selection.final.heldout_rms_dps}
+    say("fitting the calibration on the estimator's features (" + ", ".join(
+        f"{a}: {'+'.join(('paper', *chosen[a]))}" for a in axes) + ")")
+    provenance = {"diagnosis": {
+        "schema": SCHEMA, "axis": diagnosis.axis, "features": features, "margin": margin,
+        "tau_s": diagnosis.tau_s, "tau_from_chamber": diagnosis.tau_from_chamber,
+        "axes": record,
+        "runs": [{"name": r.name, "source": r.source, "sha256": r.sha256} for r in runs]}}
+    return fit_effects([estimate(r, est) for r in runs], chosen, estimator=est,
+                       provenance=provenance)

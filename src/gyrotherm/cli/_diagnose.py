@@ -1,4 +1,4 @@
-"""``gyrotherm diagnose RUNS... --json OUT [--report DIR] [--axis x|y|z]``."""
+"""``gyrotherm diagnose RUNS... --json OUT [--report DIR] [--axis x|y|z] [--calibration CAL]``."""
 
 from __future__ import annotations
 
@@ -6,8 +6,9 @@ import argparse
 import json
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 from gyrotherm._errors import ConfigError, RunFileError
 from gyrotherm.cli._common import load_runs
@@ -79,12 +80,30 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     if args.report:
         md = write_report(result, args.report)
         say(f"wrote {md}")
+    if args.calibration:
+        _write_calibration(args, runs, result, say)
     if not quiet:
         found = ", ".join(f"{f.effect} (gain {f.gain:.2f})" for f in result.findings) or "nothing"
         print(f"diagnose: found {found}; extended {result.extended.name}: held-out RMS "
               f"{result.baseline_heldout_rms_dps:.4g} → {result.extended_heldout_rms_dps:.4g} °/s "
               f"(gain {result.gain:.2f})", file=sys.stderr)
     return 0
+
+
+def _write_calibration(args: argparse.Namespace, runs: Sequence[Run], result: Any,
+                       say: Callable[[str], None]) -> None:
+    """``--calibration``: the chosen extended model, selected per axis (every axis the
+    runs share), refitted on the stored estimator's features."""
+    from gyrotherm.analysis._diagnose import export_calibration
+
+    fitted = export_calibration(runs, result, margin=args.margin, progress=say)
+    cal = fitted.calibration
+    path = cal.save(args.calibration)
+    for axis in cal.axes:
+        say(f"calibration axis {axis}: paper{''.join('+' + e for e in cal.effect_names(axis))}"
+            f", leave-one-run-out RMS {fitted.baseline_heldout_rms_dps[axis]:.4g} → "
+            f"{fitted.heldout_rms_dps[axis]:.4g} °/s")
+    say(f"wrote {path} (calibration version {cal.version}, axes {','.join(cal.axes)})")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -101,6 +120,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the simulator replay (default 0)")
     p.add_argument("--no-simulation", action="store_true",
                    help="skip the simulator calibration and replay")
+    p.add_argument("--calibration", metavar="CAL.json",
+                   help="also write a calibration of the chosen extended model for EVERY "
+                   "axis the runs share: --axis gets the diagnosis' effects, each other "
+                   "axis its own selection (paper model where nothing is found); "
+                   "coefficients refitted on the stored estimator's output")
     p.set_defaults(func=cmd_diagnose)
 
 

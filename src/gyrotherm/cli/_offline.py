@@ -62,7 +62,10 @@ def _features(args: argparse.Namespace, est: EstimatorConfig) -> list[RunFeature
 
 def cmd_fit(args: argparse.Namespace) -> int:
     est = estimator_from_args(args)
+    names = _effect_names(args)
     feats = _features(args, est)
+    if names:
+        return _fit_effects(args, est, feats, names)
     cal = fit(feats, args.model, estimator=est, method=args.method)
     scaling = default_scaling(feats)
     per_run = fit_per_run(feats, args.model, estimator=est, scaling=scaling) if len(feats) > 1 \
@@ -82,16 +85,68 @@ def cmd_fit(args: argparse.Namespace) -> int:
     return 0
 
 
+def _effect_names(args: argparse.Namespace) -> tuple[str, ...]:
+    """``--effects a,b``: checked before any run is read."""
+    from dataclasses import fields
+
+    from gyrotherm._errors import ConfigError
+    from gyrotherm.compensation._effects import Effects
+
+    if not args.effects:
+        return ()
+    known = [f.name for f in fields(Effects)]
+    names = [n.strip() for n in args.effects.split(",") if n.strip()]
+    bad = [n for n in names if n not in known]
+    if bad or not names:
+        raise ConfigError(f"--effects {args.effects!r}: unknown {bad or 'empty list'}; "
+                          f"known: {', '.join(known)}")
+    if args.model != "paper" or args.method != "pooled":
+        raise ConfigError(f"--effects extends the paper model fitted pooled (one offset per "
+                          f"run): not --model {args.model} --method {args.method}")
+    return tuple(n for n in known if n in names)
+
+
+def _fit_effects(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunFeatures],
+                 names: tuple[str, ...]) -> int:
+    """``fit --effects``: the paper model plus named effects on every axis, their
+    nonlinear parameters searched per axis as the diagnosis does; a version-2 file."""
+    from gyrotherm.analysis._export import fit_effects
+    from gyrotherm.compensation._fit import common_axes
+
+    result = fit_effects(feats, {a: names for a in common_axes(feats)}, estimator=est,
+                         provenance={"effects_requested": list(names)})
+    cal = result.calibration
+    for axis in cal.axes:
+        print(f"axis {axis}: paper+{'+'.join(names)}: leave-one-run-out RMS (1-s blocks) "
+              f"{result.baseline_heldout_rms_dps[axis]:.5g} (paper) → "
+              f"{result.heldout_rms_dps[axis]:.5g} °/s")
+        for name, params in cal.effects_of(axis).to_params().items():
+            print(f"  {name}: " + ", ".join(f"{k} = {v:.6g}" if v is not None else f"{k} = -"
+                                            for k, v in params.items()))
+    cal.save(args.out)
+    print(f"wrote {args.out} (version {cal.version}, model paper+{'+'.join(names)}, "
+          f"axes {','.join(cal.axes)})")
+    return 0
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     cal = load_calibration(args.calibration)
     feats = _features(args, cal.estimator)
     scores = [s for f in feats for s in score(cal, f)]
+    effects = {a: list(cal.effect_names(a)) for a in cal.axes}
+    start = ("each run's first row (power-on: the effects' runtime state starts there, "
+             "t_on = the run's time column)")
     if args.json:
         json.dump({"calibration": str(args.calibration), "model": cal.model.name,
+                   "version": cal.version, "effects": effects,
+                   **({"effects_state_start": start} if cal.version > 1 else {}),
                    "scores": [s.to_dict() for s in scores]}, sys.stdout, indent=2)
         print()
     else:
         print(f"calibration {args.calibration}: model {cal.model.name}")
+        if cal.version > 1:
+            print("effects: " + "; ".join(f"{a}: {', '.join(e) or 'none'}"
+                                          for a, e in effects.items()) + f"; from {start}")
         print(score_table(scores))
     return 0
 
@@ -172,6 +227,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     f.add_argument("--out", required=True, help="calibration file to write (JSON)")
     f.add_argument("--no-validation", action="store_true",
                    help="skip the leave-one-run-out validation")
+    f.add_argument("--effects", metavar="A,B",
+                   help="also fit these effects with the paper model (thermal_lag, "
+                   "hysteresis, warmup, cubic, gradient_quadratic, drift), per axis, time "
+                   "constants and hysteresis transition searched as 'diagnose' does "
+                   "(≥ 2 runs; writes a version-2 calibration)")
     add_estimator_options(f)
     f.set_defaults(func=cmd_fit)
 
