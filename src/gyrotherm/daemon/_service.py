@@ -317,6 +317,8 @@ class Daemon:
         if self._sink is not None:
             subscribed = "yes" if self._sink.rate_matched else "none"
             zen = f"; zenoh {self._sink.transports()} transports, rate subscribers {subscribed}"
+            if self._sink.congestion_episodes:
+                zen += f", congestion episodes {self._sink.congestion_episodes}"
         down = self._keeper.status()
         return (f"{c.frames_received} frames, {c.frames_published} published, "
                 f"{dropped} dropped; calibration {self._calibration_id or 'none'}; "

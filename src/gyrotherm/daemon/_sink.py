@@ -90,8 +90,8 @@ class _ZenohSink:
 
     def __init__(self, session: zenoh.Session, config: DaemonConfig) -> None:
         k = keys(config.vehicle, config.sensor)
-        # BLOCK: a message zenoh accepts is never discarded for a full queue, so
-        # "published" means sent; a stuck network stalls the loop and the watchdog fires.
+        # BLOCK: a slow subscriber slows the daemon down and loses nothing; a put waits
+        # at most publish_block_max_s (bound_publishing), then zenoh drops that link.
         cc = zenoh.CongestionControl.BLOCK
         self._session = session
         self._block_max_s = config.zenoh.publish_block_max_s
