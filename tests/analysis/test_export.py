@@ -46,3 +46,30 @@ def test_each_axis_gets_its_own_effects() -> None:
     error = runs[0].true_bias_dps["x"] - out.bias_dps["x"]
     early = f.time_s < 600.0
     assert np.std(error[early]) < 0.4 * np.std(injected[early])  # 0.24 at seed 101
+
+
+def test_add_bias_equals_the_online_kernel_on_uniform_and_jittered_grids() -> None:
+    """add_bias takes the vectorised columns on the simulator's uniform grid and the
+    kernel otherwise: both equal ExtendedModel.bias (the kernel) to 1e-9."""
+    from gyrotherm.analysis import add_bias
+    from gyrotherm.analysis._effects import BASE_COLUMNS, ExtendedModel
+    from gyrotherm.compensation import Scaling
+    from gyrotherm.sim import ChamberProfile, GyroParams, simulate
+
+    profile = ChamberProfile.from_pairs([(0, 20), (600, 20), (1500, 45), (2100, 45),
+                                         (3000, 25), (3600, 25)])
+    run = simulate(profile, name="s", gyro=GyroParams().quiet(), rate_hz=5.0, seed=2)
+    model = ExtendedModel(Scaling(30.0, 15.0, 5.0),
+                          {"thermal_lag": 60.0, "hysteresis": 0.4, "warmup": 300.0},
+                          (*BASE_COLUMNS, "hysteresis", "warmup"),
+                          (0.01, 0.03, 0.02, 0.002, 0.05, -0.04), intercept_dps=0.1)
+    temp, dtemp = run.extra["true_temperature_c"], run.extra["true_delta_t_c"]
+    want = model.bias(run.time_s, temp, dtemp)
+    added = add_bias(run, model, "x").rates_dps["x"] - run.rates_dps["x"]
+    assert np.max(np.abs(added - want)) < 1e-9 and np.ptp(want) > 0.1
+    rng = np.random.default_rng(3)
+    jittered = replace(run, time_s=run.time_s + rng.uniform(0.0, 0.05, len(run)))
+    added = add_bias(jittered, model, "x").rates_dps["x"] - run.rates_dps["x"]
+    jittered_bias = model.bias(jittered.time_s, temp, dtemp)
+    assert np.max(np.abs(added - jittered_bias)) < 1e-12  # (rate + b) − rate: rounding
+    assert np.max(np.abs(jittered_bias - want)) > 1e-6  # the kernel saw the jitter
