@@ -14,8 +14,10 @@
    Time = first ``recv`` call → last frame returned. Readers alternate
    (gyrotherm, python-can, gyrotherm, …) for ``--repeats`` rounds; the figure
    is the median frames/s, the ratio is gyrotherm / python-can of the medians.
-   Every frame's id and data is checked against the recording's source frames
-   in the first round (a fast wrong reader would not count).
+   Also the reading thread's CPU time per frame (``time.thread_time``), steadier
+   than the rate on a shared machine. Every frame's id and data is checked
+   against the recording's source frames in the first round (a fast wrong
+   reader would not count).
 
 Prints one JSON object on stdout and a summary on stderr.
 """
@@ -25,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import socket
 import statistics
 import sys
@@ -100,21 +103,22 @@ class Replay:
 
 
 def time_reader(replay: Replay, n: int, open_reader: Callable[[int], Any],
-                check: bool) -> float:
+                check: bool) -> tuple[float, float]:
+    """(frames/s, CPU µs per frame of the reading thread) for one reader."""
     thread = replay.serve_one()
     reader = open_reader(replay.port)
     try:
         got: list[can.Message] = []
         recv = reader.recv
         replay.go.set()
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), time.thread_time()
         while len(got) < n:
             msg = recv(WAIT_S)
             if msg is None:
                 raise RuntimeError(f"{reader!r}: no frame for {WAIT_S} s after {len(got)}")
             if isinstance(msg, can.Message):
                 got.append(msg)
-        elapsed = time.perf_counter() - t0
+        elapsed, cpu_s = time.perf_counter() - t0, time.thread_time() - cpu0
     finally:
         reader.shutdown()
         thread.join(WAIT_S)
@@ -124,7 +128,7 @@ def time_reader(replay: Replay, n: int, open_reader: Callable[[int], Any],
             if (msg.arbitration_id, msg.is_extended_id, bytes(msg.data)) != (
                     want.arbitration_id, want.is_extended_id, bytes(want.data)):
                 raise RuntimeError(f"{reader!r}: frame {i} is {msg}, expected {want}")
-    return n / elapsed
+    return n / elapsed, cpu_s / n * 1e6
 
 
 READERS: dict[str, Callable[[int], Any]] = {
@@ -143,11 +147,15 @@ def main(argv: list[str] | None = None) -> int:
     recording = record(a.frames)
     replay = Replay(recording)
     rates: dict[str, list[float]] = {name: [] for name in READERS}
+    cpu_us: dict[str, list[float]] = {name: [] for name in READERS}
     for r in range(a.repeats):
         for name, open_reader in READERS.items():
-            rates[name].append(time_reader(replay, a.frames, open_reader, check=r == 0))
+            rate, cpu = time_reader(replay, a.frames, open_reader, check=r == 0)
+            rates[name].append(rate)
+            cpu_us[name].append(cpu)
     replay.listener.close()
     medians = {name: statistics.median(v) for name, v in rates.items()}
+    cpu_medians = {name: statistics.median(v) for name, v in cpu_us.items()}
     result = {
         "frames": a.frames,
         "bytes": len(recording),
@@ -156,12 +164,16 @@ def main(argv: list[str] | None = None) -> int:
         "median_frames_per_s": {name: round(m) for name, m in medians.items()},
         "ratio_gyrotherm_over_python_can": round(medians["gyrotherm"] / medians["python-can"],
                                                  2),
+        "median_cpu_us_per_frame": {name: round(m, 2) for name, m in cpu_medians.items()},
+        "loadavg_1_5_15": list(os.getloadavg()),
     }
     print(json.dumps(result))
     print(f"socketcand reader, {a.frames} frames ({len(recording)} bytes), median of "
           f"{a.repeats}: gyrotherm {medians['gyrotherm']:,.0f} frames/s, python-can "
           f"{medians['python-can']:,.0f} frames/s, ratio "
-          f"{result['ratio_gyrotherm_over_python_can']}", file=sys.stderr)
+          f"{result['ratio_gyrotherm_over_python_can']}; reading thread CPU "
+          f"{cpu_medians['gyrotherm']:.2f} vs {cpu_medians['python-can']:.2f} µs/frame",
+          file=sys.stderr)
     return 0
 
 
