@@ -182,6 +182,8 @@ _DELETE = object()
         ("runtime_state.version", 2, r"field 'runtime_state': expected .*version 1"),
         ("runtime_state", _DELETE, r"missing field 'runtime_state'"),
         ("units.time", "ms", r"field 'units.time': expected 's', got 'ms'"),
+        ("effectz", {}, r"unknown key\(s\) \['effectz'\] in the top level"),
+        ("version", 1, r"unknown key\(s\) \['effects', 'runtime_state'\] in the top level"),
     ],
 )
 def test_bad_v2_files_name_file_and_field(
