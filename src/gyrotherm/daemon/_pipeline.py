@@ -28,17 +28,19 @@ Before the first temperature frame rates are published uncorrected
 (bias 0) with ``TEMPERATURE_STALE | ESTIMATOR_WARMUP`` set.
 
 Time stamps (docs/model.md, "Time stamps the daemon believes"). Each stream
-(rate, temperature) has a window around its latest accepted stamp ``t_ref``,
+(rate, temperature) has a window around a reference stamp ``t_ref``,
 ``W = max(max_time_jump_s, stale_after_s)`` (default 60 s):
 
 * a rate frame is accepted when ``|t − t_ref| ≤ W``, ``t_ref`` the largest
   accepted rate stamp (steps back and repeated stamps inside the window are
   published as before, and cannot walk ``t_ref`` back);
-* a temperature frame is accepted when ``t_ref < t ≤ t_ref + W``: strictly newer
-  and not absurdly far ahead, so the estimator only ever sees its own recent past;
+* a temperature frame is accepted when ``t_ref < t ≤ t_ref + W``, ``t_ref`` the
+  latest accepted temperature stamp: strictly newer and at most ``W`` ahead, so the
+  estimator's time only moves forward, by at most ``W`` per reading;
 * any other frame (NaN, ±inf, |t| > ``MAX_ABS_TIME_S`` = 10¹² s, a jump beyond
   ``W``, a step back or repeat in the temperature stream) is dropped as
-  ``bad_timestamp`` and changes no state; while the latest temperature frame
+  ``bad_timestamp`` and changes neither the window nor the estimator (a dropped
+  rate frame's CAN counter is still noted); while the latest temperature frame
   was so dropped, every message carries ``TEMPERATURE_STALE``;
 * a time base change (sensor reboot, clock step) is recognised when
   ``time_base_frames`` (default 5) consecutive out-of-window frames of one
@@ -51,8 +53,9 @@ Time stamps (docs/model.md, "Time stamps the daemon believes"). Each stream
 So a burst of fewer than ``time_base_frames`` bad stamps per stream changes
 nothing but the drop count (and the stale flag until the next good temperature
 frame): the next good frames give exactly the messages of a stream that never
-contained the burst. The check costs one subtraction and two comparisons per
-rate frame.
+contained the burst (rate ``seq`` aside, when rate stamps of the burst lay inside
+the window and were published). The check costs one subtraction and two
+comparisons per rate frame.
 """
 
 from __future__ import annotations
