@@ -162,6 +162,12 @@ def test_socketcan_is_a_clear_config_error_without_af_can() -> None:
         ({"interface": "socketcand", "channel": "vcan0", "port": 29536}, "host"),
         ({"interface": "socketcand", "channel": "vcan0", "host": "127.0.0.1"}, "port"),
         ({"interface": "socketcand", "channel": "vcan0", "host": "h", "port": 65536}, "port"),
+        ({"interface": "virtual", "channel": "v", "handshake_timeout_s": 1.0},
+         "handshake_timeout_s"),
+        ({"interface": "socketcand", "channel": "vcan0", "host": "h", "port": 1,
+          "handshake_timeout_s": 0}, "handshake_timeout_s"),
+        ({"interface": "socketcand", "channel": "vcan0", "host": "h", "port": 1,
+          "handshake_timeout_s": float("nan")}, "handshake_timeout_s"),
         (
             {
                 "interface": "socketcand",

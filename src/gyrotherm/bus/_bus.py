@@ -263,6 +263,11 @@ def open_bus(
     (chained from the cause) when the bus cannot be opened.
     """
     _check_options(interface, channel, bitrate, host, port, receive_own_messages)
+    if handshake_timeout_s is not None and interface != "socketcand":
+        raise ConfigError(
+            f"handshake_timeout_s: only interface 'socketcand' has a handshake,"
+            f" got {handshake_timeout_s!r}"
+        )
     if handshake_timeout_s is not None and (
         isinstance(handshake_timeout_s, bool)
         or not isinstance(handshake_timeout_s, int | float)
