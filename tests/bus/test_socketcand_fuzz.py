@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import re
 import sys
+import time
 from itertools import pairwise
 from pathlib import Path
 
@@ -124,7 +125,10 @@ def test_mutated_frames_through_tcp(case: tuple[bytes, dict[bytes, Truth]],
             assert peer.sent.wait(WAIT_S)
             peer.vanish()
             results: list[Result] = []
-            while (r := bus.recv(0.05)) is not None or not bus.link_lost:
+            deadline = time.monotonic() + WAIT_S
+            while ((r := bus.recv(0.05)) is not None or not bus.link_lost) \
+                    and time.monotonic() < deadline:
                 if r is not None:
                     results.append(r)
+            assert bus.link_lost
     check(stream, truth, results)
