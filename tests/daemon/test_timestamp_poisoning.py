@@ -271,3 +271,27 @@ def test_predict_only_covers_at_most_the_window_after_the_last_temperature_frame
     assert est.time_s == BASE_S + 29 + W  # the last prediction: W after the last reading
     assert played.pipe.flags & StatusFlags.TEMPERATURE_STALE
     assert played.rates[-1] is not None and played.rates[-1].flags & STALE
+
+
+@pytest.mark.parametrize("silence_s", [W + 1.0, 600.0, 86_400.0])
+def test_a_gyro_that_falls_silent_and_resumes_loses_no_frame(silence_s: float) -> None:
+    """A forward jump no larger than W + the wall-clock time that passed is believed:
+    the bus was silent, not lying (module docstring). Control: the same jump with
+    no wall-clock time passing is dropped until the time base change is recognised."""
+    frames = encode([Frame("T", BASE_S + 0.1 * i, (20.0 + 0.01 * i,)) if i % 2 == 0
+                     else Frame("R", BASE_S + 0.1 * i, (0.1, 0.2, 0.3)) for i in range(20)]
+                    + [Frame("T", BASE_S + silence_s + 0.1 * i, (25.0,)) if i % 2 == 0
+                       else Frame("R", BASE_S + silence_s + 0.1 * i, (0.1, 0.2, 0.3))
+                       for i in range(20, 40)])
+
+    def drops_when(wall_gap_s: float) -> dict[str, int]:
+        pipe = Pipeline(FrameDecoder(), RecordingSink(), calibration=None)
+        for i, msg in enumerate(frames):
+            pipe.process(msg, RECEIVE_S + 0.1 * i + (wall_gap_s if i >= 20 else 0.0))
+        c = pipe.counters()
+        assert c.frames_received == 40 == c.frames_published + sum(c.drops.values())
+        return c.drops
+
+    assert drops_when(silence_s) == {}  # every frame published, as after a real silence
+    lost = drops_when(0.0)  # the stamps jumped but no time passed: not believed at once
+    assert lost == {"bad_timestamp": 2 * (K - 1)}

@@ -37,8 +37,12 @@ Time stamps (docs/model.md, "Time stamps the daemon believes"). Each stream
 * a temperature frame is accepted when ``t_ref < t ≤ t_ref + W``, ``t_ref`` the
   latest accepted temperature stamp: strictly newer and at most ``W`` ahead, so the
   estimator's time only moves forward, by at most ``W`` per reading;
+* a stamp further ahead is still accepted when the jump is no larger than ``W``
+  plus the wall-clock time that passed since the stream's last accepted frame
+  arrived (``receive_time_s``): a gyro that falls silent and comes back, or a
+  bus reopened after minutes, resumes without losing a frame;
 * any other frame (NaN, ±inf, |t| > ``MAX_ABS_TIME_S`` = 10¹² s, a jump beyond
-  ``W``, a step back or repeat in the temperature stream) is dropped as
+  that, a step back or repeat in the temperature stream) is dropped as
   ``bad_timestamp`` and changes neither the window nor the estimator (a dropped
   rate frame's CAN counter is still noted); while the latest temperature frame
   was so dropped, every message carries ``TEMPERATURE_STALE``;
@@ -154,6 +158,8 @@ class Pipeline:
         self._time_base_frames = time_base_frames
         # per stream: reference stamp and the run of out-of-window stamps (module docstring)
         self._rate_ref_s = math.nan
+        self._rate_rx_s = math.nan  # receive time of the last accepted rate frame, s
+        self._temperature_rx_s = math.nan  # … of the last accepted temperature frame, s
         self._rate_run_s = math.nan
         self._rate_run_n = 0
         self._temperature_run_s = math.nan
@@ -218,9 +224,12 @@ class Pipeline:
             if kind is RateSample:
                 t = result.time_s
                 w = self._max_jump_s
-                if -w <= t - self._rate_ref_s <= w or self._rate_time_base(t):  # NaN: False
+                d = t - self._rate_ref_s
+                if (-w <= d <= w or 0.0 < d <= w + receive_time_s - self._rate_rx_s
+                        or self._rate_time_base(t)):  # NaN: False
                     if t > self._rate_ref_s:
                         self._rate_ref_s = t
+                    self._rate_rx_s = receive_time_s
                     self._rate_run_n = 0
                     self._on_rate(result, receive_time_s)  # type: ignore[arg-type]
                 else:
@@ -294,7 +303,8 @@ class Pipeline:
     def _on_temperature(self, s: TemperatureSample, receive_time_s: float) -> None:
         t = s.time_s
         last = self._last_temperature_s
-        if not last < t <= last + self._max_jump_s:  # NaN: True
+        if not (last < t <= last + self._max_jump_s  # NaN: True
+                or last < t <= last + self._max_jump_s + receive_time_s - self._temperature_rx_s):
             n = self._time_run(t, self._temperature_run_s, self._temperature_run_n)
             first = last == -math.inf
             if not n or not (first or n >= self._time_base_frames):
@@ -309,6 +319,7 @@ class Pipeline:
                             "(%d consecutive frames); estimator restarted", last, t, n)
                 self._estimator.reset()
         self._temperature_run_n = 0
+        self._temperature_rx_s = receive_time_s
         self._temperature_dropping = False
         self.last_estimate = self._estimator.update(t, s.temperature_c)
         self._last_temperature_s = t
