@@ -1,10 +1,8 @@
 """Compensation: bias models in T and ΔT, least-squares fitting, calibration files, and
 the online compensator (base polynomial + effects kernels, one per axis)."""
 
-from gyrotherm.compensation._calibration import (
-    BiasEstimate,
-    Calibration,
-    ValidRange,
+from gyrotherm.compensation._calibration import BiasEstimate, Calibration, ValidRange
+from gyrotherm.compensation._calibration_file import (
     load_calibration,
     parse_calibration,
     read_calibration,
