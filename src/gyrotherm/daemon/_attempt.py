@@ -26,6 +26,7 @@ from typing import Generic, TypeVar
 import zenoh
 
 from gyrotherm._errors import GyrothermError
+from gyrotherm._zenoh import zenoh_error_text
 
 T = TypeVar("T")
 log = logging.getLogger("gyrotherm.daemon")
@@ -124,7 +125,7 @@ def open_session(zconf: zenoh.Config, stopping: Callable[[], bool]) -> zenoh.Ses
     try:
         return attempt.result()
     except zenoh.ZError as exc:
-        raise GyrothermError(f"cannot open zenoh session: {exc}") from exc
+        raise GyrothermError(f"cannot open zenoh session: {zenoh_error_text(exc)}") from exc
 
 
 #: Longest the daemon waits for the Zenoh session to close at exit, s (zenoh's own
@@ -139,7 +140,7 @@ def close_session(session: zenoh.Session) -> None:
         try:
             session.close()
         except zenoh.ZError as exc:
-            log.warning("zenoh session close: %s", exc)
+            log.warning("zenoh session close: %s", zenoh_error_text(exc))
         finally:
             done.set()
 

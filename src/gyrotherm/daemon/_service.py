@@ -40,7 +40,7 @@ from typing import Any
 
 import zenoh
 
-from gyrotherm._zenoh import keys, session_config
+from gyrotherm._zenoh import keys, session_config, zenoh_error_text
 from gyrotherm.bus import FrameSource
 from gyrotherm.codecs import FrameDecoder
 from gyrotherm.codecs._wire import (
@@ -268,7 +268,7 @@ class Daemon:
                 sink.health.put(encode_health(health))
                 self._health_seq += 1
             except zenoh.ZError as exc:
-                log.warning("health publish failed: %s", exc)
+                log.warning("health publish failed: %s", zenoh_error_text(exc))
             self._snapshot = CalibrationInfo(self._calibration_id, self._calibration_dict(),
                                              health)
             self._notifier.status(self._status_line())

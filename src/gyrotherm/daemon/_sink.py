@@ -41,7 +41,7 @@ from typing import Any
 import zenoh
 
 from gyrotherm._errors import ConfigError, PublishError
-from gyrotherm._zenoh import keys
+from gyrotherm._zenoh import keys, zenoh_error_text
 from gyrotherm.daemon._config import DaemonConfig
 
 log = logging.getLogger("gyrotherm.daemon")
@@ -67,7 +67,8 @@ def bound_publishing(zconf: zenoh.Config, publish_block_max_s: float) -> None:
             zconf.insert_json5(_SO_SNDBUF, str(TCP_SNDBUF_BYTES))
     except (zenoh.ZError, ValueError) as exc:
         raise ConfigError(f"zenoh config: cannot set {_WAIT_BEFORE_CLOSE} for "
-                          f"publish_block_max_s = {publish_block_max_s!r}: {exc}") from exc
+                          f"publish_block_max_s = {publish_block_max_s!r}: "
+                          f"{zenoh_error_text(exc)}") from exc
 
 
 def _matching(publisher: zenoh.Publisher) -> bool:
@@ -155,7 +156,7 @@ class _ZenohSink:
         try:
             self._put_rate(payload)
         except zenoh.ZError as exc:
-            raise PublishError(f"rate: {exc}") from exc
+            raise PublishError(f"rate: {zenoh_error_text(exc)}") from exc
         if t0 < self._congested_until or _mono() - t0 >= self._block_max_s:
             return self._congestion(t0, "rate")
         return self.rate_matched or _matching(self.rate)
@@ -165,7 +166,7 @@ class _ZenohSink:
         try:
             self._put_state(payload)
         except zenoh.ZError as exc:
-            raise PublishError(f"state: {exc}") from exc
+            raise PublishError(f"state: {zenoh_error_text(exc)}") from exc
         if t0 < self._congested_until or _mono() - t0 >= self._block_max_s:
             return self._congestion(t0, "state")
         return self.state_matched or _matching(self.state)
