@@ -35,11 +35,13 @@ import signal
 import threading
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from types import FrameType
 from typing import Any
 
 import zenoh
 
+from gyrotherm._errors import CalibrationError
 from gyrotherm._zenoh import keys, session_config, zenoh_error_text
 from gyrotherm.bus import FrameSource
 from gyrotherm.codecs import FrameDecoder
@@ -73,6 +75,20 @@ class RunSummary:
     uptime_s: float
 
 
+def _read_runnable(path: Path) -> tuple[Calibration, str]:
+    """:func:`read_calibration`, refusing what this daemon cannot evaluate yet: a
+    version-2 calibration with effects (its base coefficients were fitted together
+    with the effects, so running the base alone would be wrong, not degraded)."""
+    cal, cid = read_calibration(path)
+    if cal.version != 1:
+        effects = {a: cal.effect_names(a) for a in cal.axes if cal.effect_names(a)}
+        raise CalibrationError(
+            f"{path}: calibration version {cal.version} with effects {effects}: the "
+            "streaming daemon runs version-1 calibrations only (paper, t2, t3); "
+            "`gyrotherm evaluate` scores this file offline")
+    return cal, cid
+
+
 class Daemon:
     """The gyrotherm service for one sensor."""
 
@@ -98,7 +114,7 @@ class Daemon:
         self._hup = False
         self._keeper = BusKeeper(config.can, self._stopping, self._notifier.status)
         if config.calibration is not None:
-            self._calibration, self._calibration_id = read_calibration(config.calibration)
+            self._calibration, self._calibration_id = _read_runnable(config.calibration)
         # What the queryable answers, replaced whole by the loop thread (never mutated):
         # zenoh calls _on_query on its own thread.
         self._snapshot = CalibrationInfo(self._calibration_id, self._calibration_dict(), None)
@@ -280,7 +296,7 @@ class Daemon:
             log.warning("SIGHUP: no calibration file configured; nothing to reload")
         else:
             try:
-                cal, cid = read_calibration(path)
+                cal, cid = _read_runnable(path)
                 pipeline.set_calibration(cal)
             except Exception as exc:  # a bad file must never stop the daemon
                 self.reload_failures += 1
