@@ -13,7 +13,7 @@ chains, measured interleaved in one run (round-robin, ``--trials`` rounds):
   T/ΔT Kalman (per temperature frame) → compensation → msgpack → zenoh put.
 * ``full``: the whole cross-process chain: frames played by this process onto a
   :class:`~gyrotherm.sim.SocketcandServer` on 127.0.0.1 → the daemon as a process
-  (``python -m gyrotherm run --config FILE``, python-can's socketcand client) →
+  (``python -m gyrotherm run --config FILE``, gyrotherm's socketcand client) →
   the subscriber process.
 
 The subscriber is :class:`gyrotherm.client.Subscriber` (decode, seq and latency

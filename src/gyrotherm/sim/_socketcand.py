@@ -2,8 +2,9 @@
 
 The machine has no SocketCAN, so the simulator serves the ASCII protocol of
 socketcand (github.com/linux-can/socketcand, ``doc/protocol.md`` and
-``state_raw.c``) and the daemon reads it with python-can's own client,
-``can.Bus(interface="socketcand", host=..., port=..., channel="vcan0")``.
+``state_raw.c``) and the daemon reads it with gyrotherm's own client,
+:class:`gyrotherm.bus.SocketcandBus` (python-can's
+``can.Bus(interface="socketcand", ...)`` works too).
 The session, the ``< frame ID SEC.USEC DATA >`` line and the commands answered
 are in :mod:`gyrotherm.sim._socketcand_wire` (classic CAN only; CAN FD, remote
 and error frames are rejected with :class:`gyrotherm.DecodeError`); one

@@ -2,8 +2,9 @@
 
 :class:`~gyrotherm.sim._socketcand.SocketcandServer` serves the ASCII protocol
 of socketcand (github.com/linux-can/socketcand, ``doc/protocol.md`` and
-``state_raw.c``) and the daemon reads it with python-can's own client,
-``can.Bus(interface="socketcand", host=..., port=..., channel="vcan0")``.
+``state_raw.c``) and the daemon reads it with gyrotherm's own client,
+:class:`gyrotherm.bus.SocketcandBus` (python-can's
+``can.Bus(interface="socketcand", ...)`` works too).
 
 Session, as python-can's client drives it (every reply is its own TCP write)::
 
