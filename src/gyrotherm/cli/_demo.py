@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import math
 import socket
+import sys
 import tempfile
 import threading
 from pathlib import Path
@@ -94,6 +95,19 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0 if ok else 1
 
 
+def _wait_delivered(sub: Any, n_rate: int, *, stall_s: float = 10.0) -> None:
+    """Wait until the subscriber has all ``n_rate`` rate messages, as long as they keep
+    coming (a loaded machine only slows the chain down); give up after ``stall_s``
+    seconds without progress, saying how many are missing."""
+    seen = -1
+    while sub.stats().rate.received > seen:
+        seen = sub.stats().rate.received
+        if sub.wait_for(lambda s: s.rate.received >= n_rate, timeout_s=stall_s):
+            return
+    print(f"warning: {n_rate - seen} of {n_rate} rate messages had not arrived after "
+          f"{stall_s:g} s without progress; the summary covers what did", file=sys.stderr)
+
+
 def _stream(run: Any, cal_path: Path, *, speed: float) -> tuple[RunSummary, _LiveView, Any]:
     from gyrotherm.client import Subscriber
     from gyrotherm.codecs import FrameEncoder
@@ -123,8 +137,7 @@ def _stream(run: Any, cal_path: Path, *, speed: float) -> tuple[RunSummary, _Liv
             frames = frames_from_run(run, encoder=FrameEncoder())
             played = play(frames, FlushingSink(server), speed=speed)
             server.flush(30.0)
-            n_rate = played.rate_frames
-            sub.wait_for(lambda s: s.rate.received >= n_rate, timeout_s=30.0)
+            _wait_delivered(sub, played.rate_frames)
             daemon.stop()
             thread.join(30.0)
             stats = sub.stats()
