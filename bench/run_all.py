@@ -39,10 +39,12 @@ ORDER = ["zenoh_baseline", "stream_throughput", "stream_latency"]
 """Run first, in this order; other scripts follow alphabetically."""
 ARGS: dict[str, list[str]] = {
     "zenoh_baseline": ["--mode", "micro", "--iterations", "50000"],
+    "footprint": ["--import-trials", "7", "--ready-trials", "5", "--daemon-trials", "2"],
 }
 QUICK_ARGS: dict[str, list[str]] = {
     "stream_throughput": ["--trials", "2", "--trial-s", "2", "--unpaced-frames", "100000"],
     "stream_latency": ["--trials", "3", "--trial-s", "2"],
+    "footprint": ["--quick"],
 }
 
 
@@ -136,6 +138,18 @@ def headline(benchmarks: dict[str, Any]) -> dict[str, Any]:
                                for k, v in (lat.get("summary") or {}).items() if k != "ratios"}
         out["latency_ratios"] = _get(lat, "summary", "ratios")
         out["latency_daemon_memory_kB"] = lat.get("memory")
+    fp = _get(benchmarks, "footprint", "result") or {}
+    if fp:
+        imports = _get(fp, "imports", "summary") or {}
+        daemons = _get(fp, "daemons", "summary") or {}
+        out["footprint"] = {
+            "import_s_median": {k: v.get("import_s_median") for k, v in imports.items()},
+            "import_rss_kB_median": {k: v.get("rss_kB_median") for k, v in imports.items()},
+            "ready_s_median": {k: v.get("ready_s_median") for k, v in daemons.items()},
+            "rss_steady_kB_median": {k: v.get("rss_steady_kB_median")
+                                     for k, v in daemons.items()},
+            "ratios_after_over_before": fp.get("ratios_after_over_before"),
+        }  # fmt: skip
     return out
 
 

@@ -91,7 +91,9 @@ def notify_socket(tmp_path: Path) -> Iterator[tuple[socket.socket, str]]:
         yield sock, path
 
 
-def _wait_for_ready(sock: socket.socket, proc: subprocess.Popen[str]) -> list[str]:
+def _wait_for_ready(sock: socket.socket, proc: subprocess.Popen[str]) -> None:
+    """Wait for READY=1, then keep reading the socket as systemd does (a full queue,
+    net.unix.max_dgram_qlen datagrams, would block the daemon's next notification)."""
     got: list[str] = []
     while True:
         try:
@@ -100,7 +102,19 @@ def _wait_for_ready(sock: socket.socket, proc: subprocess.Popen[str]) -> list[st
             pytest.fail(f"no READY=1 within {TIMEOUT_S} s (exit {proc.poll()}): {got}")
         got.append(data)
         if "READY=1" in data.splitlines():
-            return got
+            break
+
+    def drain() -> None:
+        while sock.fileno() != -1:  # until the fixture closes it
+            try:
+                sock.recv(4096)
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+
+    sock.settimeout(0.2)
+    threading.Thread(target=drain, daemon=True).start()
 
 
 def test_run_path_loads_no_offline_modules(
