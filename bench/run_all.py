@@ -146,6 +146,8 @@ def headline(benchmarks: dict[str, Any]) -> dict[str, Any]:
             "import_s_median": {k: v.get("import_s_median") for k, v in imports.items()},
             "import_rss_kB_median": {k: v.get("rss_kB_median") for k, v in imports.items()},
             "ready_s_median": {k: v.get("ready_s_median") for k, v in daemons.items()},
+            "ready_only_s_median": {k: v.get("ready_s_median") for k, v in
+                                    (_get(fp, "ready", "summary") or {}).items()},
             "rss_steady_kB_median": {k: v.get("rss_steady_kB_median")
                                      for k, v in daemons.items()},
             "ratios_after_over_before": fp.get("ratios_after_over_before"),
