@@ -202,3 +202,29 @@ def test_send_failures_are_counted_not_raised(tmp_path: Path) -> None:
 def test_malformed_environment_names_the_variable(env: dict[str, str], fragment: str) -> None:
     with pytest.raises(ConfigError, match=fragment):
         Notifier.from_environment(env, pid=1)
+
+
+def test_a_manager_that_stops_reading_cannot_stall_the_sender(tmp_path: Path) -> None:
+    """Nobody reads the socket: once its queue is full each notification is dropped
+    and counted after at most SEND_TIMEOUT_S (the processing loop sends them)."""
+    import time
+
+    from gyrotherm.daemon._sdnotify import SEND_TIMEOUT_S
+
+    path = str(tmp_path / "notify")
+    sock = _bind_receiver(path)  # bound, never read
+    try:
+        with Notifier(path) as notifier:
+            sent_before_full = 0
+            while notifier.status(f"fill {sent_before_full}"):  # until the queue is full
+                sent_before_full += 1
+                assert sent_before_full < 100_000
+            t0 = time.monotonic()
+            results = [notifier.status(f"late {i}") for i in range(20)]
+            elapsed_s = time.monotonic() - t0
+        assert not any(results)
+        assert notifier.send_failures == 21 and notifier.sent == sent_before_full
+        assert elapsed_s < 20 * 1.0  # the old 1 s wait per send would take ≥ 20 s
+        assert SEND_TIMEOUT_S <= 0.05
+    finally:
+        sock.close()

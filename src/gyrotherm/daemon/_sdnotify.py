@@ -75,6 +75,13 @@ def _single_line(text: str) -> str:
     return " ".join(text.replace("\r", "\n").split("\n")).strip()
 
 
+SEND_TIMEOUT_S = 0.02
+"""Default longest wait of one notification on a full socket queue, s. systemd reads
+its notify socket at once; a queue that stays full means nobody reads it (a hung or
+absent service manager), and the processing loop, which sends from its own thread,
+must not stall on it: the notification is dropped and counted instead."""
+
+
 class Notifier:
     """Sends sd_notify(3) datagrams to the service manager; see the module docstring.
 
@@ -87,7 +94,7 @@ class Notifier:
         notify_socket: str | None,
         *,
         watchdog_interval_s: float | None = None,
-        send_timeout_s: float = 1.0,
+        send_timeout_s: float = SEND_TIMEOUT_S,
         monotonic_ns: Callable[[], int] = time.monotonic_ns,
         monotonic_usec: Callable[[], int] = _monotonic_usec,
     ) -> None:
@@ -98,7 +105,8 @@ class Notifier:
             watchdog_interval_s: the watchdog timeout ``WATCHDOG_USEC`` in s,
                 or ``None`` when no watchdog is armed.
             send_timeout_s: how long one send may block on a full receive
-                queue before it counts as failed, s.
+                queue before it counts as failed, s (default
+                :data:`SEND_TIMEOUT_S`).
             monotonic_ns: clock for the watchdog rate limit, ns (injectable).
             monotonic_usec: ``CLOCK_MONOTONIC`` in µs for ``MONOTONIC_USEC=``.
         """
@@ -129,7 +137,7 @@ class Notifier:
         environ: Mapping[str, str] | None = None,
         *,
         pid: int | None = None,
-        send_timeout_s: float = 1.0,
+        send_timeout_s: float = SEND_TIMEOUT_S,
     ) -> Notifier:
         """Read ``NOTIFY_SOCKET``, ``WATCHDOG_USEC`` and ``WATCHDOG_PID``.
 
