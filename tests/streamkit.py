@@ -28,8 +28,10 @@ import can
 import numpy as np
 import zenoh
 
+from gyrotherm.analysis._effects import BASE_COLUMNS, ExtendedModel
+from gyrotherm.analysis._export import calibration_from_models
 from gyrotherm.codecs import FrameEncoder, RateSample, Run, SignalMap, TemperatureSample
-from gyrotherm.compensation import Calibration, RunFeatures, features
+from gyrotherm.compensation import Calibration, RunFeatures, Scaling, ValidRange, features
 
 
 def run_frames(run: Run, encoder: FrameEncoder, *, period_s: float = 0.0) -> Iterator[can.Message]:
@@ -198,16 +200,59 @@ USER_SIGNAL_MAP = SignalMap(
 
 
 
+def offline_bias(calibration: Calibration, time_s: np.ndarray, temperature_c: np.ndarray,
+                 delta_t_c: np.ndarray) -> dict[str, np.ndarray]:
+    """Per axis, the bias offline evaluation gives for one estimator output series
+    starting at power-on: version 1 the polynomial (:meth:`Calibration.bias_series`),
+    version 2 a fresh :meth:`Calibration.compensator`'s series with t_on = t − t[0]
+    (0 for an axis the calibration does not have)."""
+    t = np.asarray(time_s, dtype=np.float64)
+    if calibration.version == 1:
+        return {a: calibration.bias_series(a, temperature_c, delta_t_c)[0]
+                if a in calibration.axes else np.zeros(len(t)) for a in "xyz"}
+    out = calibration.compensator().series(t, np.asarray(temperature_c),
+                                           np.asarray(delta_t_c), t - t[0])
+    return {a: out.bias_dps[a] if a in out.bias_dps else np.zeros(len(t)) for a in "xyz"}
+
+
 def assert_offline_compensation(
     rates_dps: list[tuple[float, float, float]], run: Run, calibration: Calibration
 ) -> RunFeatures:
     """The daemon's corrected rates (one per row, x y z, °/s) equal offline
     compensation of ``run``: raw − F(T, ΔT) with T and ΔT from :func:`features`
-    (to 1e-9 °/s). Returns the offline features for further checks."""
+    (to 1e-9 °/s); with effects (version 2) the compensator's series from the run's
+    first row as power-on (:func:`offline_bias`). Returns the offline features."""
     got = np.array(rates_dps)
     assert got.shape == (len(run), 3), got.shape
     offline = features(run, calibration.estimator)
+    bias = offline_bias(calibration, offline.time_s, offline.temperature_c, offline.delta_t_c)
     for j, axis in enumerate("xyz"):
-        bias, _ = calibration.bias_series(axis, offline.temperature_c, offline.delta_t_c)
-        np.testing.assert_allclose(got[:, j], run.rates_dps[axis] - bias, atol=1e-9)
+        np.testing.assert_allclose(got[:, j], run.rates_dps[axis] - bias[axis], atol=1e-9)
     return offline
+
+
+EFFECTS_SCALING = Scaling(t_ref_c=15.0, t_scale_c=35.0, dt_scale_c=8.0)
+ALL_EFFECTS = {"thermal_lag": 75.0, "hysteresis": 0.35, "warmup": 400.0, "cubic": 0.0,
+               "gradient_quadratic": 0.0, "drift": 0.0}
+EFFECTS_COLUMNS = (*BASE_COLUMNS, "hysteresis", "warmup", "cubic", "gradient_quadratic",
+                   "drift")
+
+
+def make_v2(stream_calibration: Calibration, *, scale: float = 1.0,
+            t_on_max_s: float = 7200.0, y_effects: bool = True) -> Calibration:
+    """x: every effect; y: thermal_lag + warmup (or none); z: the paper polynomial."""
+    x = ExtendedModel(EFFECTS_SCALING, ALL_EFFECTS, EFFECTS_COLUMNS,
+                      tuple(scale * c for c in (0.02, -0.05, 0.03, 0.004, 0.012, -0.08,
+                                                0.006, -0.002, 0.003)), intercept_dps=0.7)
+    y = (ExtendedModel(EFFECTS_SCALING, {"thermal_lag": 200.0, "warmup": 900.0},
+                       (*BASE_COLUMNS, "warmup"), (-0.01, 0.04, 0.02, -0.003, 0.05),
+                       intercept_dps=-0.2) if y_effects else
+         ExtendedModel(EFFECTS_SCALING, {}, BASE_COLUMNS, (-0.01, 0.04, 0.02, -0.003),
+                       intercept_dps=-0.2))
+    z = ExtendedModel(EFFECTS_SCALING, {}, BASE_COLUMNS, (0.005, 0.01, -0.02, 0.001),
+                      intercept_dps=0.1)
+    return calibration_from_models({"x": x, "y": y, "z": z},
+                                   estimator=stream_calibration.estimator,
+                                   t_on_max_s=t_on_max_s,
+                                   valid_range=ValidRange(-60.0, 90.0, -500.0, 500.0),
+                                   provenance={"method": "by hand"})

@@ -1,8 +1,10 @@
-"""The daemon runs version-1 calibrations; a version-2 file (effects) is refused at
-start and on reload with a message naming the file and the effects, never half-run."""
+"""The daemon runs version-1 and version-2 calibrations (effects), at start and on
+reload; a file of an unknown version is still refused naming the file and field.
+Parity of the rates with offline compensation: test_effects_daemon.py."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -10,9 +12,11 @@ import pytest
 from gyrotherm import CalibrationError
 from gyrotherm.analysis._effects import BASE_COLUMNS, ExtendedModel
 from gyrotherm.analysis._export import calibration_from_models
+from gyrotherm.codecs import FrameDecoder
 from gyrotherm.compensation import Scaling, ValidRange
-from gyrotherm.daemon import Daemon, parse_config
+from gyrotherm.daemon import Daemon, Pipeline, parse_config
 from gyrotherm.estimators import EstimatorConfig
+from streamkit import RecordingSink
 
 SCALING = Scaling(t_ref_c=15.0, t_scale_c=35.0, dt_scale_c=8.0)
 
@@ -32,11 +36,23 @@ def _config(cal: Path) -> dict[str, object]:
             "zenoh": {"listen": []}}
 
 
-def test_version_2_is_refused_at_start_naming_file_and_effects(tmp_path: Path) -> None:
+def test_version_2_runs_at_start_and_on_reload(tmp_path: Path) -> None:
     cal = _write(tmp_path / "v2.json", {"warmup": 400.0}, (*BASE_COLUMNS, "warmup"),
                  (0.02, -0.05, 0.03, 0.004, 0.1))
-    with pytest.raises(CalibrationError, match=r"v2\.json: calibration version 2 with "
-                                               r"effects \{'x': \('warmup',\)\}"):
+    daemon = Daemon(parse_config(_config(cal)))
+    assert daemon._calibration is not None and daemon._calibration.version == 2
+    pipe = Pipeline(FrameDecoder(), RecordingSink(), calibration=daemon._calibration)
+    daemon._do_reload(pipe)
+    assert daemon.reloads == 1 and daemon.reload_failures == 0
+    assert pipe.calibration is not None and pipe.calibration.effect_names("x") == ("warmup",)
+
+
+def test_an_unknown_version_is_still_refused_naming_file_and_field(tmp_path: Path) -> None:
+    cal = _write(tmp_path / "v7.json", {}, BASE_COLUMNS, (0.02, -0.05, 0.03, 0.004))
+    doc = json.loads(cal.read_text())
+    doc["version"] = 7
+    cal.write_text(json.dumps(doc))
+    with pytest.raises(CalibrationError, match=r"v7\.json: field 'version'"):
         Daemon(parse_config(_config(cal)))
 
 

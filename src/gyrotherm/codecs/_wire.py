@@ -6,7 +6,7 @@ the hot path); element 0 is the message kind, element 1 the schema version::
     rate    [1, 1, seq, sensor_time_s, receive_time_s,
              rate_x, rate_y, rate_z, raw_x, raw_y, raw_z, bias_x, bias_y, bias_z, flags]
     state   [2, 1, seq, sensor_time_s, receive_time_s, temperature_c, temperature_std_c,
-             delta_t_c, delta_t_std_c, bias_x, bias_y, bias_z, flags]
+             delta_t_c, delta_t_std_c, bias_x, bias_y, bias_z, flags, {effects}]
     health  [3, 1, seq, sensor_time_s | nil, receive_time_s, uptime_s, frames_received,
              frames_published, {reason: count}, flags, calibration_id, counter_jumps]
     calibration reply
@@ -22,6 +22,9 @@ the hot path); element 0 is the message kind, element 1 the schema version::
 * rates and biases in °/s, temperatures in °C, all float64; ``rate = raw − bias``.
   NaN means "not available" (e.g. ``temperature_c`` before the first temperature frame).
 * ``flags``: :class:`StatusFlags` bits as an unsigned integer.
+* ``effects`` (state, appended within schema 1, present only while a calibration's
+  compensator runs): ``{axis: [structure_temperature_c, hysteresis_h,
+  hysteresis_direction, t_on_s, effects_bias_dps]}`` (:class:`AxisEffects`).
 
 Version rule: a decoder accepts only the schema version it knows (1). Fields may be
 *appended* within a version (decoders ignore trailing elements) and new flag bits
@@ -38,9 +41,9 @@ from __future__ import annotations
 
 import enum
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any
+from typing import Any, NamedTuple
 
 import msgpack
 
@@ -98,6 +101,24 @@ class StatusFlags(enum.IntFlag):
     #: bit 10: the calibration evaluated to a non-finite bias (or overflowed) at the
     #: current T, ΔT: ``bias_dps`` is 0 and the rate is the raw rate.
     BIAS_INVALID = 1 << 10
+    #: bit 11: the time since power-on fed to the calibration's effects was outside
+    #: [0, t_on_max_s] (``warmup``/``drift``, docs/model.md §8): clamped to the limit.
+    T_ON_CLAMPED = 1 << 11
+
+
+class AxisEffects(NamedTuple):
+    """One axis' effects state in a state message (after the latest compensator step)."""
+
+    structure_temperature_c: float
+    """T_s, the structure temperature the effects keep (unclamped; NaN: none yet), °C."""
+    hysteresis_h: float
+    """h ∈ [−1, 1] (0 without a ``hysteresis`` effect)."""
+    hysteresis_direction: int
+    """d ∈ {−1, 0, +1}, the direction of the last move of T_s."""
+    t_on_s: float
+    """Time since the gyro's power-on fed to the step (unclamped), s."""
+    effects_bias_dps: float
+    """The additive effects' part of the bias (without the base polynomial), °/s."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -126,6 +147,9 @@ class StateMessage:
     delta_t_std_c: float
     bias_dps: Vec3
     flags: StatusFlags = StatusFlags.NONE
+    effects: Mapping[str, AxisEffects] = field(default_factory=dict)
+    """Per axis (appended in schema 1): empty without a running compensator or from a
+    publisher that predates it."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -209,14 +233,15 @@ def encode_rate_values(
 
 
 def encode_state(msg: StateMessage) -> bytes:
-    """Encode a state message (13-element array)."""
+    """Encode a state message (13-element array; 14 with ``effects``, only when not empty)."""
     b = msg.bias_dps
-    return _pack(
-        [2, SCHEMA_VERSION, msg.seq, msg.sensor_time_s, msg.receive_time_s,
-         msg.temperature_c, msg.temperature_std_c, msg.delta_t_c, msg.delta_t_std_c,
-         b[0], b[1], b[2], int(msg.flags)],
-        "state",
-    )  # fmt: skip
+    out: list[Any] = [2, SCHEMA_VERSION, msg.seq, msg.sensor_time_s, msg.receive_time_s,
+           msg.temperature_c, msg.temperature_std_c, msg.delta_t_c, msg.delta_t_std_c,
+           b[0], b[1], b[2], int(msg.flags)]  # fmt: skip
+    if msg.effects:
+        out.append({a: [float(e[0]), float(e[1]), int(e[2]), float(e[3]), float(e[4])]
+                    for a, e in msg.effects.items()})
+    return _pack(out, "state")
 
 
 def _health_list(msg: HealthMessage) -> list[Any]:

@@ -25,6 +25,7 @@ from gyrotherm._errors import DecodeError
 from gyrotherm.codecs._wire import (
     SCHEMA_VERSION,
     U64_MAX,
+    AxisEffects,
     CalibrationInfo,
     HealthMessage,
     Message,
@@ -75,7 +76,7 @@ def _opt_finite(v: Any, i: int, name: str, what: str) -> float | None:
 
 
 _FLOAT_ONLY = {float}
-_FLAGS_CACHE = {v: StatusFlags(v) for v in range(2048)}  # every combination of bits 0-10
+_FLAGS_CACHE = {v: StatusFlags(v) for v in range(4096)}  # every combination of bits 0-11
 _NON_FINITE = int(StatusFlags.NON_FINITE)
 _isfinite = math.isfinite
 
@@ -114,6 +115,29 @@ def _calibration(v: Any, i: int, name: str, what: str) -> dict[str, Any] | None:
     return v
 
 
+_AXES = ("x", "y", "z")
+
+
+def _effects(v: Any, i: int, name: str, what: str) -> dict[str, AxisEffects]:
+    if type(v) is not dict:
+        raise _fail(what, i, name, v, f"is {type(v).__name__}, expected map axis→array")
+    out = {}
+    for axis, e in v.items():
+        if axis not in _AXES:
+            raise _fail(what, i, f"{name} key", axis, f"is not an axis {_AXES}")
+        where = f"{name}[{axis!r}]"
+        if type(e) is not list or len(e) < 5:
+            raise _fail(what, i, where, e, "is not an array of 5 elements")
+        d = e[2]
+        if type(d) is not int or d not in (-1, 0, 1):
+            raise _fail(what, i, f"{where}.hysteresis_direction", d, "is not -1, 0 or 1")
+        out[axis] = AxisEffects(_float(e[0], i, f"{where}.structure_temperature_c", what),
+                                _float(e[1], i, f"{where}.hysteresis_h", what), d,
+                                _float(e[3], i, f"{where}.t_on_s", what),
+                                _float(e[4], i, f"{where}.effects_bias_dps", what))
+    return out
+
+
 def _opt_health(v: Any, i: int, name: str, what: str) -> HealthMessage | None:
     if v is None:
         return None
@@ -149,6 +173,7 @@ _SPECS: dict[MessageKind, list[tuple[str, _Check]]] = {
 #: Fields appended within schema 1: (name, check, value when the array ends before it).
 _APPENDED: dict[MessageKind, list[tuple[str, _Check, Any]]] = {
     MessageKind.HEALTH: [("counter_jumps", _u64, 0)],
+    MessageKind.STATE: [("effects", _effects, {})],
 }
 
 
@@ -161,7 +186,8 @@ def _build_rate(v: list[Any]) -> RateMessage:
 
 
 def _build_state(v: list[Any]) -> StateMessage:
-    return StateMessage(v[0], v[1], v[2], v[3], v[4], v[5], v[6], (v[7], v[8], v[9]), v[10])
+    return StateMessage(v[0], v[1], v[2], v[3], v[4], v[5], v[6], (v[7], v[8], v[9]), v[10],
+                        dict(v[11]) if len(v) > 11 else {})
 
 
 def _build_health(v: list[Any]) -> HealthMessage:

@@ -31,7 +31,12 @@ from numpy.typing import NDArray
 
 from gyrotherm._errors import CalibrationError
 from gyrotherm.compensation._effects import EffectsKernel
-from gyrotherm.compensation._effects_state import STATE_VERSION, EffectFlags, EffectsState
+from gyrotherm.compensation._effects_state import (
+    STATE_VERSION,
+    EffectFlags,
+    EffectsOutput,
+    EffectsState,
+)
 
 if TYPE_CHECKING:
     from gyrotherm.compensation._calibration import BiasEstimate, Calibration
@@ -66,11 +71,14 @@ class Compensator:
                                    f"the calibration (axes {list(calibration.axes)})")
         self.kernels = {a: EffectsKernel(calibration.effects_of(a), calibration.valid_range,
                                          states.get(a)) for a in calibration.axes}
+        self.last: dict[str, EffectsOutput] = {}
+        """Per axis, the kernel's output of the latest :meth:`step` (empty before one)."""
 
     def reset(self) -> None:
         """Forget every axis' history (a power cycle of the gyro)."""
         for k in self.kernels.values():
             k.reset()
+        self.last = {}
 
     def step(self, time_s: float, temperature_c: float, delta_t_c: float,
              t_on_s: float | None = None) -> BiasEstimate:
@@ -79,10 +87,12 @@ class Compensator:
 
         t_on = time_s if t_on_s is None else t_on_s
         cal = self.calibration
+        # every kernel steps first: a polynomial that raises (overflow) leaves no axis behind
+        self.last = out = {a: k.step(time_s, temperature_c, delta_t_c, t_on)
+                           for a, k in self.kernels.items()}
         bias: dict[str, float] = {}
         flags = 0
-        for axis, kernel in self.kernels.items():
-            o = kernel.step(time_s, temperature_c, delta_t_c, t_on)
+        for axis, o in out.items():
             bias[axis] = cal.base_bias(axis, o.structure_temperature_c, o.delta_t_c) + o.bias_dps
             flags |= o.flags
         return BiasEstimate(bias, bool(flags & _T), bool(flags & _DT), flags)

@@ -6,6 +6,9 @@ Example (every key; relative paths are relative to the config file)::
     sensor = "imu0"
     calibration = "/var/lib/gyrotherm/imu0.calibration.json"   # optional
     health_period_s = 1.0             # health publication period, s
+    state_dir = "/var/lib/gyrotherm"  # optional: keep the effects' state across restarts
+    power_on_gap_s = 30.0             # sensor silence after which the gyro counts as
+                                      # powered on again (t_on = 0), s
 
     [can]
     interface = "socketcan"           # socketcan | socketcand | virtual
@@ -39,6 +42,16 @@ for the Zenoh session to open. ``publish_block_max_s``
 ``transport/link/tx/queue/congestion_control/block/wait_before_close`` (µs), also
 over a ``config`` file's value; it must stay well under half of ``WatchdogSec=5s``
 (docs/operations.md, "A slow or frozen subscriber").
+
+``state_dir`` (default: none, no persistence) is where the daemon keeps the
+calibration effects' state (``<vehicle>.<sensor>.effects-state.json``, written
+every 5 s and at shutdown) so that a restart while the gyro keeps running does
+not replay its warm-up; under the shipped unit it is the ``StateDirectory=``
+``/var/lib/gyrotherm``. Power-on (t_on = 0) is the first temperature frame after
+the start, after a silence longer than ``power_on_gap_s`` (1…3600 s) or after a
+time base change; a saved state is restored only for the same calibration id
+when the first frame continues its time within ``power_on_gap_s``
+(docs/operations.md, "Calibration effects across restarts").
 
 Errors are :class:`gyrotherm.ConfigError` naming the file and the key.
 """
@@ -98,6 +111,8 @@ class DaemonConfig:
     calibration: Path | None = None
     estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
     health_period_s: float = 1.0
+    state_dir: Path | None = None
+    power_on_gap_s: float = 30.0
     source: str = "<memory>"
 
 
@@ -141,7 +156,7 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
     """Validate a parsed TOML document."""
     base = base_dir or Path.cwd()
     _unknown(data, {"vehicle", "sensor", "calibration", "health_period_s", "can", "estimator",
-                    "zenoh"}, source)
+                    "zenoh", "state_dir", "power_on_gap_s"}, source)
     vehicle = _take(data, "vehicle", str, source, None)
     sensor = _take(data, "sensor", str, source, None)
     if vehicle is None or sensor is None:
@@ -153,6 +168,11 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
     cal = _take(data, "calibration", str, source, None)
     health = _bounded(_take(data, "health_period_s", (int, float), source, 1.0), 0.05, 3600,
                       f"{source}: health_period_s")
+    state_dir = _take(data, "state_dir", str, source, None)
+    if state_dir is not None and not state_dir.strip():
+        raise ConfigError(f"{source}: state_dir = {state_dir!r}: must name a directory")
+    gap = _bounded(_take(data, "power_on_gap_s", (int, float), source, 30.0), 1.0, 3600.0,
+                   f"{source}: power_on_gap_s")
 
     where = f"{source}: [can]"
     c = _table(data, "can", source)
@@ -234,6 +254,8 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
         calibration=None if cal is None else _path(base, cal),
         estimator=EstimatorConfig.from_dict(est_table, where=f"{source}: [estimator]"),
         health_period_s=health,
+        state_dir=None if state_dir is None else _path(base, state_dir),
+        power_on_gap_s=gap,
         source=source,
     )
 

@@ -81,6 +81,7 @@ from gyrotherm.codecs._wire import (
     encode_state,
 )
 from gyrotherm.compensation import Calibration
+from gyrotherm.daemon._compensation import POWER_ON_GAP_S, Compensation
 from gyrotherm.estimators import EstimatorConfig, TemperatureEstimate, TemperatureEstimator
 
 log = logging.getLogger("gyrotherm.daemon")
@@ -146,6 +147,7 @@ class Pipeline:
         check_counters: bool = True,
         max_time_jump_s: float = MAX_TIME_JUMP_S,
         time_base_frames: int = TIME_BASE_FRAMES,
+        power_on_gap_s: float = POWER_ON_GAP_S,
     ) -> None:
         if not (math.isfinite(max_time_jump_s) and max_time_jump_s > 0):
             raise ConfigError(f"max_time_jump_s = {max_time_jump_s!r}: must be a positive "
@@ -153,6 +155,11 @@ class Pipeline:
         if isinstance(time_base_frames, bool) or not (
                 isinstance(time_base_frames, int) and time_base_frames >= 2):
             raise ConfigError(f"time_base_frames = {time_base_frames!r}: must be an integer >= 2")
+        if not (math.isfinite(power_on_gap_s) and power_on_gap_s > 0):
+            raise ConfigError(f"power_on_gap_s = {power_on_gap_s!r}: must be a positive "
+                              "number of seconds")
+        self._power_on_gap_s = float(power_on_gap_s)
+        self._compensation = Compensation(None, self._power_on_gap_s)
         self._max_time_jump_s = float(max_time_jump_s)
         self._max_jump_s = self._max_time_jump_s  # W, set with the estimator below
         self._time_base_frames = time_base_frames
@@ -191,14 +198,22 @@ class Pipeline:
     # --- configuration ---------------------------------------------------------------
 
     def set_calibration(self, calibration: Calibration | None) -> None:
-        """Swap the calibration; a new estimator setting restarts the estimator."""
+        """Swap the calibration; a new estimator setting restarts the estimator. The
+        same calibration keeps its compensator (the effects' state continues); another
+        one: :mod:`gyrotherm.daemon._compensation`."""
         est = calibration.estimator if calibration else self._default_estimator
         if est != self._estimator.config:
             self._estimator = TemperatureEstimator(est)
             self.last_estimate = None
         self.calibration = calibration
+        self._compensation.set_calibration(calibration)
         self._max_jump_s = max(self._max_time_jump_s, self._estimator.config.stale_after_s)
-        self._refresh_bias()
+        self._refresh_bias(step=False)
+
+    @property
+    def compensation(self) -> Compensation:
+        """The compensator and power-on time (persistence: ``snapshot``/``restore_at_power_on``)."""
+        return self._compensation
 
     @property
     def stale_after_s(self) -> float:
@@ -318,21 +333,26 @@ class Pipeline:
                 log.warning("temperature frames: time base changed from %r s to %r s "
                             "(%d consecutive frames); estimator restarted", last, t, n)
                 self._estimator.reset()
+            self._compensation.power_on(t, first=first)  # a new time base: power-on
+        elif t - last > self._power_on_gap_s:  # a silence longer than the gap: power-on
+            self._compensation.power_on(t, first=False)
         self._temperature_run_n = 0
         self._temperature_rx_s = receive_time_s
         self._temperature_dropping = False
         self.last_estimate = self._estimator.update(t, s.temperature_c)
         self._last_temperature_s = t
         self._sensor_status = s.status or 0
-        self._refresh_bias()
+        self._refresh_bias(step=True)
         self._publish_state(s.time_s, receive_time_s)
 
     # --- temperature-rate work ---------------------------------------------------------
 
-    def _refresh_bias(self) -> None:
-        """Bias and flags from the latest estimate. A calibration that evaluates to a
-        non-finite bias, or overflows, at this (T, ΔT) gives bias 0 (the published
-        rate is the raw rate, never a non-finite one) and ``BIAS_INVALID``."""
+    def _refresh_bias(self, *, step: bool) -> None:
+        """Bias and flags from the latest estimate; ``step``: a new estimate, which steps
+        the compensator (:mod:`gyrotherm.daemon._compensation`; else its cached result
+        is reused). A calibration that evaluates to a non-finite bias, or overflows,
+        at this (T, ΔT) gives bias 0 (the published rate is the raw rate, never a
+        non-finite one) and ``BIAS_INVALID``."""
         est = self.last_estimate
         flags = StatusFlags.NONE
         if est is None or math.isnan(est.temperature_c):
@@ -345,25 +365,9 @@ class Pipeline:
                 flags |= StatusFlags.ESTIMATOR_REJECTED
             if est.updates < WARMUP_UPDATES:
                 flags |= StatusFlags.ESTIMATOR_WARMUP
-            if self.calibration is None:
-                self._bias = _ZERO
-            else:
-                try:
-                    b = self.calibration.bias_at(est.temperature_c, est.delta_t_c)
-                    bias = (b.bias_dps.get("x", 0.0), b.bias_dps.get("y", 0.0),
-                            b.bias_dps.get("z", 0.0))
-                    valid = all(math.isfinite(v) for v in bias)
-                except (ArithmeticError, ValueError):  # x**p overflows; fsum(inf, -inf)
-                    valid = False
-                if valid:
-                    self._bias = bias
-                    if b.t_clamped:
-                        flags |= StatusFlags.T_CLAMPED
-                    if b.dt_clamped:
-                        flags |= StatusFlags.DELTA_T_CLAMPED
-                else:
-                    self._bias = _ZERO
-                    flags |= StatusFlags.BIAS_INVALID
+            self._bias, bias_flags = self._compensation.bias(
+                est.time_s, est.temperature_c, est.delta_t_c, step=step)
+            flags |= bias_flags
         if self.calibration is None:
             flags |= StatusFlags.NO_CALIBRATION
         if self._sensor_status:
@@ -379,7 +383,7 @@ class Pipeline:
             self._state_seq, sensor_time_s, receive_time_s,
             est.temperature_c if est else nan, est.temperature_std_c if est else nan,
             est.delta_t_c if est else nan, est.delta_t_std_c if est else nan,
-            self._bias, self._flags)
+            self._bias, self._flags, self._compensation.axis_effects())
         try:
             routed = self._sink.put_state(encode_state(msg))
         except PublishError:
@@ -407,7 +411,7 @@ class Pipeline:
                 self.last_estimate = self._estimator.predict(t)
             except (ArithmeticError, ValueError):  # defensive: predict() does not raise
                 log.warning("predict-only step to t = %r s failed; estimate kept", t)
-            self._refresh_bias()
+            self._refresh_bias(step=True)
 
     # --- reporting ---------------------------------------------------------------------
 

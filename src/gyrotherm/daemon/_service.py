@@ -19,7 +19,11 @@ wait is an event wait of at most ``recv_timeout_s``
 (:mod:`gyrotherm.daemon._attempt`); publishers are undeclared, session and bus
 closed. The handlers only set a flag (a handler must take no lock). SIGHUP
 reloads the calibration atomically — a bad file keeps the old calibration,
-logs why and counts ``reload_failures``.
+logs why and counts ``reload_failures``; the same calibration keeps its effects'
+state, another one takes it over when its effects are of the same kinds
+(:mod:`gyrotherm.daemon._compensation`). Version-1 and version-2 (effects)
+calibrations both run; with ``state_dir`` the effects' state survives a restart
+(:mod:`gyrotherm.daemon._effects_store`).
 
 The Zenoh side (publishers, matching status, transport events) is
 :class:`~gyrotherm.daemon._sink._ZenohSink`; its module docstring states how
@@ -35,13 +39,11 @@ import signal
 import threading
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from types import FrameType
 from typing import Any
 
 import zenoh
 
-from gyrotherm._errors import CalibrationError
 from gyrotherm._zenoh import keys, session_config, zenoh_error_text
 from gyrotherm.bus import FrameSource
 from gyrotherm.codecs import FrameDecoder
@@ -56,6 +58,7 @@ from gyrotherm.compensation import Calibration, read_calibration
 from gyrotherm.daemon._attempt import close_session, open_session
 from gyrotherm.daemon._buskeeper import BusKeeper
 from gyrotherm.daemon._config import DaemonConfig
+from gyrotherm.daemon._effects_store import EffectsKeeper
 from gyrotherm.daemon._pipeline import Counters, Pipeline
 from gyrotherm.daemon._sdnotify import Notifier
 from gyrotherm.daemon._sink import _ZenohSink, bound_publishing
@@ -73,20 +76,6 @@ class RunSummary:
     reloads: int
     reload_failures: int
     uptime_s: float
-
-
-def _read_runnable(path: Path) -> tuple[Calibration, str]:
-    """:func:`read_calibration`, refusing what this daemon cannot evaluate yet: a
-    version-2 calibration with effects (its base coefficients were fitted together
-    with the effects, so running the base alone would be wrong, not degraded)."""
-    cal, cid = read_calibration(path)
-    if cal.version != 1:
-        effects = {a: cal.effect_names(a) for a in cal.axes if cal.effect_names(a)}
-        raise CalibrationError(
-            f"{path}: calibration version {cal.version} with effects {effects}: the "
-            "streaming daemon runs version-1 calibrations only (paper, t2, t3); "
-            "`gyrotherm evaluate` scores this file offline")
-    return cal, cid
 
 
 class Daemon:
@@ -113,8 +102,9 @@ class Daemon:
         self._signalled: int | None = None  # set by the signal handlers (no locks there)
         self._hup = False
         self._keeper = BusKeeper(config.can, self._stopping, self._notifier.status)
+        self.effects_keeper = EffectsKeeper(config.state_dir, config.vehicle, config.sensor)
         if config.calibration is not None:
-            self._calibration, self._calibration_id = _read_runnable(config.calibration)
+            self._calibration, self._calibration_id = read_calibration(config.calibration)
         # What the queryable answers, replaced whole by the loop thread (never mutated):
         # zenoh calls _on_query on its own thread.
         self._snapshot = CalibrationInfo(self._calibration_id, self._calibration_dict(), None)
@@ -180,8 +170,11 @@ class Daemon:
             self._sink = sink
             pipeline = Pipeline(decoder, sink, calibration=self._calibration,
                                 estimator=cfg.estimator,
-                                check_counters=cfg.can.on_counter_jump == "deliver")
+                                check_counters=cfg.can.on_counter_jump == "deliver",
+                                power_on_gap_s=cfg.power_on_gap_s)
             self._pipeline = pipeline
+            self.effects_keeper.restore(pipeline.compensation, self._calibration_id)
+            stack.callback(self._save_effects, pipeline, force=True)
             k = keys(cfg.vehicle, cfg.sensor)
             self._reply_key = k.calibration
             queryable = session.declare_queryable(k.calibration, self._on_query)
@@ -275,6 +268,7 @@ class Daemon:
             self._hup = False
             self._do_reload(pipeline)
         now = time.monotonic()
+        self._save_effects(pipeline)
         if now - self._last_health >= self.config.health_period_s:
             self._last_health = now
             pipeline.tick()
@@ -296,7 +290,7 @@ class Daemon:
             log.warning("SIGHUP: no calibration file configured; nothing to reload")
         else:
             try:
-                cal, cid = _read_runnable(path)
+                cal, cid = read_calibration(path)
                 pipeline.set_calibration(cal)
             except Exception as exc:  # a bad file must never stop the daemon
                 self.reload_failures += 1
@@ -309,6 +303,10 @@ class Daemon:
                 self._snapshot = CalibrationInfo(cid, self._calibration_dict(),
                                                  self._snapshot.health)
         self._notifier.ready(status=self._status_line())
+
+    def _save_effects(self, pipeline: Pipeline, *, force: bool = False) -> None:
+        self.effects_keeper.save(pipeline.compensation, self._calibration_id,
+                                 time.monotonic(), force=force)
 
     def _calibration_dict(self) -> dict[str, Any] | None:
         return self._calibration.to_dict() if self._calibration else None

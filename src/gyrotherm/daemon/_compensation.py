@@ -1,0 +1,171 @@
+"""The pipeline's bias: one :class:`~gyrotherm.compensation.Compensator` per loaded
+calibration, stepped once per new estimate, and the gyro's power-on time.
+
+Version-1 and version-2 calibrations run through the same compensator (without
+effects a step equals :meth:`Calibration.bias_at` bit for bit). It is stepped
+with (t, T, ΔT, t_on) on each accepted temperature frame and on the
+housekeeping's predict-only step, never per rate frame: the result is cached
+and the rate hot path only reads the cached bias tuple.
+
+**Power-on** (t_on = t − ``power_on_s``): the first accepted temperature frame
+after the daemon starts, after a sensor silence longer than ``power_on_gap_s``
+(sensor time between two accepted temperature frames) or after a time-base
+change of the temperature stream is the gyro's power-on: t_on = 0 there and the
+effects' state starts again (as offline evaluation starts it at a run's first
+row). Exception: a daemon restarted while the gyro kept running restores the
+state it saved (:meth:`Compensation.restore_at_power_on`, persistence in
+:mod:`gyrotherm.daemon._effects_store`) when the first frame continues the saved
+time within ``power_on_gap_s``.
+
+**Another calibration** (SIGHUP): the same calibration (equal content, e.g. the
+same file re-read) keeps its compensator, nothing is stepped again. A different
+one gets a new compensator; it takes over the old one's per-axis states when
+both have the same axes and the same effect kinds per axis (the states then
+mean the same things: structure temperature, hysteresis, power-on time), else
+its states start at the current estimate (T_s = T, h = 0). t_on is the daemon's
+and always continues. The new compensator is stepped once at the current
+estimate (with a taken-over state that step has dt = 0, which changes nothing).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from gyrotherm.codecs._wire import AxisEffects, StatusFlags
+from gyrotherm.compensation import Calibration, Compensator
+from gyrotherm.compensation._effects_state import EffectFlags
+
+log = logging.getLogger("gyrotherm.daemon")
+
+#: Default sensor silence after which the next temperature frame is a power-on, s.
+POWER_ON_GAP_S = 30.0
+_ZERO = (0.0, 0.0, 0.0)
+_T, _DT = int(EffectFlags.T_CLAMPED), int(EffectFlags.DT_CLAMPED)
+_T_ON, _SKIPPED = int(EffectFlags.T_ON_CLAMPED), int(EffectFlags.SKIPPED)
+
+
+@dataclass(frozen=True)
+class EffectsSnapshot:
+    """What a restarted daemon needs to continue the effects: the power-on time and
+    the time of the latest step on the sensor's clock (s), the compensator's
+    :meth:`~Compensator.state_dict`."""
+
+    power_on_s: float
+    time_s: float
+    state: dict[str, Any]
+
+
+def _same_kinds(a: Calibration, b: Calibration) -> bool:
+    return a.axes == b.axes and all(a.effect_names(x) == b.effect_names(x) for x in a.axes)
+
+
+class Compensation:
+    """Bias and bias flags of the latest estimate; see the module docstring."""
+
+    def __init__(self, calibration: Calibration | None, power_on_gap_s: float) -> None:
+        self.power_on_gap_s = power_on_gap_s
+        self.calibration: Calibration | None = None
+        self.compensator: Compensator | None = None
+        self.power_on_s = math.nan
+        self.time_s = math.nan  # time of the latest step, s
+        self.t_on_s = math.nan  # t_on fed to the latest step, s
+        self._cached: tuple[tuple[float, float, float], StatusFlags] | None = None
+        self._restore: EffectsSnapshot | None = None
+        self.set_calibration(calibration)
+
+    def set_calibration(self, calibration: Calibration | None) -> None:
+        if calibration == self.calibration:
+            return  # the same model: its state continues, nothing is stepped again
+        old = self.compensator
+        self.calibration, self._cached, self._restore = calibration, None, None
+        if calibration is None:
+            self.compensator = None
+        elif old is not None and _same_kinds(old.calibration, calibration):
+            self.compensator = Compensator.load_state(calibration, old.state_dict())
+            log.info("calibration changed: effects state taken over (same effects)")
+        else:
+            self.compensator = calibration.compensator()
+            if old is not None:
+                log.info("calibration changed: other effects, their state starts now")
+
+    def restore_at_power_on(self, snapshot: EffectsSnapshot) -> None:
+        """Continue from ``snapshot`` if the first temperature frame continues it."""
+        self._restore = snapshot
+
+    def power_on(self, time_s: float, *, first: bool) -> None:
+        """The gyro powered on at ``time_s`` (``first``: the daemon's first frame,
+        where a saved state may be restored instead)."""
+        snap, self._restore = self._restore, None
+        if (first and snap is not None and self.compensator is not None
+                and 0.0 <= time_s - snap.time_s <= self.power_on_gap_s):
+            try:
+                self.compensator = Compensator.load_state(
+                    self.compensator.calibration, snap.state, source="saved effects state")
+            except Exception as exc:  # validated at load; defensive
+                log.warning("saved effects state not restored: %s", exc)
+            else:
+                self.power_on_s, self.time_s, self._cached = snap.power_on_s, snap.time_s, None
+                log.info("effects state restored: power-on at %r s, t_on %.1f s", snap.power_on_s,
+                         time_s - snap.power_on_s)
+                return
+        elif first and snap is not None:
+            log.info("saved effects state not restored: first frame at %r s does not continue "
+                     "%r s within %g s; power-on now", time_s, snap.time_s, self.power_on_gap_s)
+        self.power_on_s, self._cached = time_s, None
+        if self.compensator is not None:
+            self.compensator.reset()
+
+    def snapshot(self) -> EffectsSnapshot | None:
+        """The state to persist, None before the first step."""
+        c = self.compensator
+        if c is None or math.isnan(self.time_s) or not c.last:
+            return None
+        return EffectsSnapshot(self.power_on_s, self.time_s, c.state_dict())
+
+    def bias(self, time_s: float, temperature_c: float, delta_t_c: float, *, step: bool
+             ) -> tuple[tuple[float, float, float], StatusFlags]:
+        """Bias (x, y, z) and flags at the latest estimate; ``step``: it is a new one
+        (else the cached result, when there is one, is returned unchanged)."""
+        c = self.compensator
+        if c is None:
+            return _ZERO, StatusFlags.NONE
+        if not step and self._cached is not None:
+            return self._cached
+        self.time_s, self.t_on_s = time_s, time_s - self.power_on_s
+        try:
+            b = c.step(time_s, temperature_c, delta_t_c, self.t_on_s)
+            bias = (b.bias_dps.get("x", 0.0), b.bias_dps.get("y", 0.0), b.bias_dps.get("z", 0.0))
+            valid = not b.flags & _SKIPPED and all(math.isfinite(v) for v in bias)
+        except (ArithmeticError, ValueError):  # x**p overflows; fsum(inf, -inf)
+            valid = False
+        flags = StatusFlags.NONE
+        if valid:
+            if b.flags & _T:
+                flags |= StatusFlags.T_CLAMPED
+            if b.flags & _DT:
+                flags |= StatusFlags.DELTA_T_CLAMPED
+            if b.flags & _T_ON:
+                flags |= StatusFlags.T_ON_CLAMPED
+        else:
+            bias, flags = _ZERO, StatusFlags.BIAS_INVALID
+        self._cached = (bias, flags)
+        return self._cached
+
+    def axis_effects(self) -> dict[str, AxisEffects]:
+        """Per axis, the effects' state after the latest step (the state message's
+        ``effects``); empty before a step or without a calibration."""
+        c = self.compensator
+        if c is None or not c.last or self._cached is None:
+            return {}
+        out = {}
+        for axis, kernel in c.kernels.items():
+            s, o = kernel.state, c.last[axis]
+            if s.samples == 0:  # nothing accepted yet (every step skipped)
+                out[axis] = AxisEffects(math.nan, math.nan, 0, self.t_on_s, math.nan)
+            else:
+                out[axis] = AxisEffects(s.structure_temperature_c, s.hysteresis_h,
+                                        s.hysteresis_direction, self.t_on_s, o.bias_dps)
+        return out
