@@ -6,10 +6,10 @@ import argparse
 import logging
 import sys
 
-from gyrotherm.daemon import Daemon, load_config
-
 
 def cmd_run(args: argparse.Namespace) -> int:
+    from gyrotherm.daemon import Daemon, load_config  # only `run` loads the daemon and zenoh
+
     logging.basicConfig(
         level=getattr(logging, args.log_level.upper()),
         stream=sys.stderr,
