@@ -266,3 +266,37 @@ def test_config_state_dir_and_power_on_gap(tmp_path: Path) -> None:
                          ({"state_dir": " "}, r"g\.toml: state_dir = ' ': must name a dir")]:
         with pytest.raises(ConfigError, match=pattern):
             parse_config(_cfg(**bad), source="g.toml")
+
+
+def test_the_predict_only_tick_steps_the_compensator_once(v2: Calibration) -> None:
+    """Temperature frames stop, rates go on: tick() predicts to the latest rate stamp
+    and steps the kernels there (t_on included); re-setting the same calibration
+    re-evaluates without stepping; rate frames never step."""
+    enc = FrameEncoder()
+    sink = RecordingSink()
+    pipe = _pipe(v2, sink)
+    for k in range(10):
+        pipe.process(enc.encode_temperature(TemperatureSample(float(k), 20.0 + 0.1 * k)), 0.0)
+    kernels = pipe.compensation.compensator.kernels  # type: ignore[union-attr]
+    for k in range(50):
+        pipe.process(enc.encode_rate(RateSample(9.0 + 0.2 * k, 0.0, 0.0, 0.0)), 0.0)
+    assert kernels["x"].state.samples == 10  # rate frames do not step
+    pipe.tick()  # 18.8 s: 9.8 s after the last temperature frame (> stale_after_s 5 s)
+    assert kernels["x"].state.samples == 11 and kernels["x"].state.time_s == 18.8
+    assert pipe.compensation.t_on_s == 18.8
+    est = pipe.last_estimate
+    assert est is not None and est.time_s == 18.8
+    want = v2.compensator()
+    for k in range(10):
+        want.step(float(k), *_estimate_at(sink, k))
+    bias = want.step(18.8, est.temperature_c, est.delta_t_c, 18.8).bias_dps
+    pipe.set_calibration(v2)
+    assert kernels["x"].state.samples == 11
+    pipe.process(enc.encode_rate(RateSample(19.0, 0.0, 0.0, 0.0)), 0.0)
+    got = decode_rate(sink.rates[-1]).bias_dps
+    assert got == (bias["x"], bias["y"], bias["z"])
+
+
+def _estimate_at(sink: RecordingSink, k: int) -> tuple[float, float, float]:
+    s = decode_state(sink.states[k])
+    return s.temperature_c, s.delta_t_c, s.sensor_time_s
