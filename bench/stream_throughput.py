@@ -160,6 +160,14 @@ def build_frames(n_rate: int) -> tuple[list[can.Message], list[float]]:
     return frames, [f.timestamp - t0 for f in frames]
 
 
+UNPACED_INV_SPEED = 1e-3
+"""Unpaced trials stamp their frames 1000× compressed (150 000 frames at 1 kHz span
+0.15 s of sensor time, not 150 s): every trial then starts after the previous one's
+last stamp, as a real sensor's time would, instead of jumping back to the wall clock
+after an unpaced trial ran 150 s into the future (the daemon rightly takes such a
+jump as a time base change and drops 4 frames per stream)."""
+
+
 def restamp(frames: Sequence[can.Message], rel_s: Sequence[float], start_s: float,
             inv_speed: float) -> None:
     """Timestamps := ``start_s + rel·inv_speed`` (the wall-clock schedule when paced)."""
@@ -468,7 +476,7 @@ class ScheduledSource(FrameSource):
     """Pre-built frames handed to the daemon on an absolute schedule.
 
     :meth:`play` restamps the first ``n`` frames with their wall-clock due time
-    (``start + rel·inv_speed``; unpaced: ``inv_speed`` 1, all due at once) and
+    (``start + rel·inv_speed``; unpaced: :data:`UNPACED_INV_SPEED`, all due at once) and
     arms a trial; :meth:`recv` returns a frame once it is due (sleeping at most
     ``timeout_s``), so a slow consumer gets frames in batches, never fewer. After
     the last frame it calls ``on_done`` with the trial's figures.
@@ -494,7 +502,7 @@ class ScheduledSource(FrameSource):
     def play(self, n: int, inv_speed: float) -> None:
         n = min(n, len(self._frames))
         start = time.time() + 0.05 + 0.4e-6 * n
-        restamp(self._frames[:n], self._rel[:n], start, inv_speed or 1.0)
+        restamp(self._frames[:n], self._rel[:n], start, inv_speed or UNPACED_INV_SPEED)
         time.sleep(max(0.0, start - time.time()))
         with self._cond:
             self._i, self._n, self._paced = 0, n, inv_speed > 0
@@ -744,7 +752,7 @@ class FullChain(Chain):
         frames = self._frames[:n_frames]
         dropped0 = sum(c.frames_dropped for c in self.server.client_stats())
         start = time.time() + 0.05 + 0.4e-6 * n_frames
-        restamp(frames, self._rel, start, inv_speed or 1.0)
+        restamp(frames, self._rel, start, inv_speed or UNPACED_INV_SPEED)
         time.sleep(max(0.0, start - time.time()))
         if inv_speed:  # a bus that does not wait: the server drops when a queue is full
             stats = play(frames, self.server, speed=1.0, clock=time.time)
