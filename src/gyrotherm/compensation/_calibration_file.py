@@ -30,6 +30,9 @@ from gyrotherm.compensation._calibration_v2 import (
     parse_effects,
     parse_runtime_state,
 )
+from gyrotherm.compensation._calibration_v2 import (
+    finite_number as _value,
+)
 from gyrotherm.compensation._models import Scaling, Term, get_model
 from gyrotherm.estimators import EstimatorConfig
 
@@ -80,19 +83,6 @@ def _get(data: Any, path: str, kind: type | tuple[type, ...], source: str) -> An
 
 def _num(data: Any, path: str, source: str) -> float:
     return _value(_get(data, path, (int, float), source), path, source)
-
-
-def _value(node: Any, path: str, source: str) -> float:
-    """``node`` as a finite float; CalibrationError naming ``path`` otherwise."""
-    if not isinstance(node, int | float) or isinstance(node, bool):
-        raise CalibrationError(f"{source}: field {path!r}: expected a number, got {node!r}")
-    try:
-        v = float(node)
-    except OverflowError:
-        raise CalibrationError(f"{source}: field {path!r}: number too large") from None
-    if not math.isfinite(v):
-        raise CalibrationError(f"{source}: field {path!r}: not a finite number ({v!r})")
-    return v
 
 
 def _check_keys(data: dict[str, Any], version: int, source: str) -> None:

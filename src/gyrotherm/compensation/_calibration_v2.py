@@ -38,7 +38,9 @@ def effects_to_dict(effects: Mapping[str, Effects], axes: tuple[str, ...]) -> di
     return {a: effects[a].to_params() if a in effects else {} for a in axes}
 
 
-def _number(node: Any, path: str, source: str) -> float:
+def finite_number(node: Any, path: str, source: str) -> float:
+    """``node`` as a finite float; CalibrationError naming ``source`` and ``path`` otherwise
+    (shared by both file versions' readers)."""
     if isinstance(node, bool) or not isinstance(node, int | float):
         raise CalibrationError(f"{source}: field {path!r}: expected a number, got {node!r}")
     try:
@@ -96,7 +98,7 @@ def _parse_effect(values: Any, path: str, name: str, source: str) -> dict[str, f
         if values[key] is None and not required:
             out[key] = None
             continue
-        v = _number(values[key], where, source)
+        v = finite_number(values[key], where, source)
         if key in positive and not v > 0.0:
             raise CalibrationError(f"{source}: field {where!r}: must be > 0, got {v!r}")
         out[key] = v
