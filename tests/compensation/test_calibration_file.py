@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
 
+from calkit import DELETE, broken
 from gyrotherm import CalibrationError
 from gyrotherm.compensation import Calibration, RunFeatures, fit, load_calibration
 from gyrotherm.estimators import EstimatorConfig
@@ -38,20 +38,7 @@ def test_round_trip(calibration: Calibration, tmp_path: Path) -> None:
     assert set(doc["coefficients_physical"]["x"]) == {"T^2", "T", "dT", "T*dT", "1"}
 
 
-def _broken(doc: dict[str, Any], path: str, value: object) -> dict[str, Any]:
-    out = json.loads(json.dumps(doc))
-    node = out
-    keys = path.split(".")
-    for k in keys[:-1]:
-        node = node[k]
-    if value is _DELETE:
-        del node[keys[-1]]
-    else:
-        node[keys[-1]] = value
-    return out
-
-
-_DELETE = object()
+_broken, _DELETE = broken, DELETE
 
 
 @pytest.mark.parametrize(

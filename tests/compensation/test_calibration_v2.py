@@ -7,11 +7,11 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
 
+from calkit import DELETE, broken
 from gyrotherm import CalibrationError
 from gyrotherm.analysis._effects import BASE_COLUMNS, ExtendedModel, design
 from gyrotherm.analysis._export import calibration_from_models
@@ -149,20 +149,7 @@ def test_compensator_flags_and_time_before_power_on(v2: Calibration) -> None:
         Compensator.load_state(v2, {"version": 1, "axes": {"x": {"version": 1}, "y": {}}})
 
 
-def _broken(doc: dict[str, Any], path: str, value: object) -> dict[str, Any]:
-    out = json.loads(json.dumps(doc))
-    node = out
-    keys = path.split(".")
-    for k in keys[:-1]:
-        node = node[k]
-    if value is _DELETE:
-        del node[keys[-1]]
-    else:
-        node[keys[-1]] = value
-    return out
-
-
-_DELETE = object()
+_broken, _DELETE = broken, DELETE
 
 
 @pytest.mark.parametrize(
