@@ -535,7 +535,8 @@ def main() -> None:
         "",
         "Every number and figure here is produced by `scripts/findings.py` "
         "(`.venv/bin/python scripts/findings.py`, seeded, "
-        f"{time.perf_counter() - start:.0f} s on this machine); edit the script, not this file.",
+        f"{time.perf_counter() - start:.0f} s on this machine); edit the script, not this file "
+        "(sections after §4 come from other scripts, each named there).",
         "",
         "Data: the BMI270 plateaus in `../shared/data/measured/bmi270-peltier-laptop/` "
         "(Bosch BMI270, © 2026 Ganesh Yerramsetti, MIT licence, "
