@@ -65,3 +65,14 @@ def tls_files(config: zenoh.Config, pki: Path, ca: str, name: str) -> None:
         config.insert_json5(
             f"transport/link/tls/{direction}_private_key", json.dumps(str(pki / f"{name}-key.pem"))
         )
+
+
+def make_pki(directory: Path, leaves: tuple[str, ...], rogue: str) -> Path:
+    """``test-ca`` signing ``leaves`` (serials 2, 3, …) and ``rogue-ca`` signing ``rogue``
+    (serial 9), all in ``directory``; the caller skips when openssl is missing."""
+    make_ca(directory, "test-ca")
+    make_ca(directory, "rogue-ca")
+    for serial, name in enumerate(leaves, start=2):
+        make_leaf(directory, "test-ca", name, serial)
+    make_leaf(directory, "rogue-ca", rogue, 9)
+    return directory

@@ -61,7 +61,7 @@ from gyrotherm.compensation import Calibration, features, fit
 from gyrotherm.daemon import Daemon, parse_config
 from gyrotherm.estimators import EstimatorConfig
 from gyrotherm.sim import GyroParams, chamber_runs
-from pkikit import make_ca, make_leaf, tls_files
+from pkikit import make_pki, tls_files
 from streamkit import free_port, open_ephemeral
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -92,15 +92,9 @@ def calibration_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def pki(tmp_path_factory: pytest.TempPathFactory) -> Path:
     if shutil.which("openssl") is None:
         pytest.skip("the openssl CLI is not installed: cannot make test certificates")
-    directory = tmp_path_factory.mktemp("pki")
-    make_ca(directory, "test-ca")
-    make_ca(directory, "rogue-ca")
-    for serial, name in enumerate(
-        ("gyrotherm-router", "gyrotherm-daemon", "gyrotherm-viewer"), start=2
-    ):
-        make_leaf(directory, "test-ca", name, serial)
-    make_leaf(directory, "rogue-ca", "gyrotherm-daemon-rogue", 9)
-    return directory
+    return make_pki(tmp_path_factory.mktemp("pki"),
+                    ("gyrotherm-router", "gyrotherm-daemon", "gyrotherm-viewer"),
+                    "gyrotherm-daemon-rogue")
 
 
 # ------------------------------------------------------------------ config files

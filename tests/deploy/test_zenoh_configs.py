@@ -32,7 +32,7 @@ import zenoh
 
 from gyrotherm import ConfigError
 from gyrotherm._zenoh import PLACEHOLDER_PASSWORD, session_config
-from pkikit import make_ca, make_leaf, tls_files
+from pkikit import make_pki, tls_files
 from streamkit import open_ephemeral
 
 DEPLOY_ZENOH = Path(__file__).resolve().parents[2] / "deploy" / "zenoh"
@@ -153,15 +153,9 @@ def pki(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """CA + leaf certificates (EC P-256, SAN 127.0.0.1) made with the openssl CLI."""
     if shutil.which("openssl") is None:
         pytest.skip("the openssl CLI is not installed: cannot make test certificates")
-    directory = tmp_path_factory.mktemp("pki")
-    make_ca(directory, "test-ca")
-    make_ca(directory, "rogue-ca")
-    for serial, name in enumerate(
-        ("gyrotherm-router", "gyrotherm-daemon", "gyrotherm-viewer", "gyrotherm-peer"), start=2
-    ):
-        make_leaf(directory, "test-ca", name, serial)
-    make_leaf(directory, "rogue-ca", "gyrotherm-rogue", 9)
-    return directory
+    return make_pki(tmp_path_factory.mktemp("pki"),
+                    ("gyrotherm-router", "gyrotherm-daemon", "gyrotherm-viewer", "gyrotherm-peer"),
+                    "gyrotherm-rogue")
 
 
 _tls_files = tls_files
