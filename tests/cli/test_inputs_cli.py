@@ -15,6 +15,7 @@ import pytest
 
 from gyrotherm.cli import main
 from gyrotherm.codecs import read_run
+from gyrotherm.readers import InputSpec, read_runs
 from userdatakit import bus_log, logger_csv
 from userdbckit import user_log
 
@@ -68,6 +69,8 @@ def test_import_writes_run_files_with_provenance(tmp_path: Path,
     assert md["columns"] == " ".join(COLUMNS[1:])
     assert (md["unit_time"], md["unit_temperature"], md["unit_x"]) == ("us", "degC", "rad/s")
     assert run.name == "log"
+    (again,) = read_runs(out, spec=InputSpec())  # read back: a run file, imported from text
+    assert (again.metadata["format"], again.metadata["source_format"]) == ("run", "text")
 
 
 def test_import_several_devices_into_a_directory(tmp_path: Path) -> None:

@@ -77,8 +77,13 @@ def _candump(path: Path, spec: InputSpec) -> list[Run]:
     return [_tag(run, "candump", device_id=f"can:0x{rate_id:X}")]
 
 
-def _tag(run: Run, fmt: str, *, device_id: str = "", instance: int = 0) -> Run:
+def _tag(run: Run, fmt: str, *, device_id: str = "", instance: int = 0,
+         override: bool = False) -> Run:
+    """``run`` with the metadata keys ``format``, ``device_id``, ``instance`` (the
+    reader's own values kept, except ``format`` when ``override``)."""
     meta = dict(run.metadata)
+    if override:
+        meta["format"] = fmt
     meta.setdefault("format", fmt)
     meta.setdefault("device_id", device_id)
     meta.setdefault("instance", str(instance))
@@ -94,7 +99,8 @@ def read_runs(path: str | os.PathLike[str], *, spec: InputSpec) -> list[Run]:
     p = Path(path)
     fmt = detect_format(p) if spec.format == "auto" else spec.format
     readers: dict[str, Callable[[], list[Run]]] = {
-        "run": lambda: [_tag(read_run(p), "run")],
+        # an imported run file keeps its original format in source_format
+        "run": lambda: [_tag(read_run(p), "run", override=True)],
         "text": lambda: read_text(p, columns=spec.columns, delimiter=spec.delimiter),
         "candump": lambda: _candump(p, spec),
         "ulog": lambda: list(_module(fmt, "_ulog", p).read_ulog(p)),
