@@ -73,6 +73,21 @@ def test_bom_and_delimiters_are_detected(tmp_path: Path, delimiter: str, bom: bo
     assert_logger_values(read_runs(path, spec=spec()), path)
 
 
+def test_crlf_quoted_fields_and_not_utf8(tmp_path: Path) -> None:
+    path = tmp_path / "crlf.csv"
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh, quoting=csv.QUOTE_ALL, lineterminator="\r\n")
+        w.writerow(["timestamp", "temp", "gx", "gy", "gz"])
+        w.writerows(LOGGER_ROWS)
+    assert b'"1000000","20.5"' in path.read_bytes() and b"\r\n" in path.read_bytes()
+    assert_logger_values(read_runs(path, spec=spec()), path)
+    bad = tmp_path / "latin1.csv"
+    bad.write_bytes("timestamp,temp,gx,gy,gz\n1,2,3,4,5\n# température\n".encode("latin-1"))
+    # "# temp" + é: the é (0xE9 in Latin-1) is the 7th byte
+    with pytest.raises(RunFileError, match=rf"{bad}: line 3: not UTF-8 text \(byte 7 of "):
+        read_runs(bad, spec=spec())
+
+
 def test_whitespace_columns_and_comment_lines(tmp_path: Path) -> None:
     path = tmp_path / "ws.txt"
     lines = ["# exported by a logger", "timestamp   temp  gx gy gz"]
