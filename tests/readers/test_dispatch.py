@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from gyrotherm._errors import ConfigError, RunFileError
-from gyrotherm.codecs import Run, write_run
+from gyrotherm.codecs import Run, SignalMap, write_run
 from gyrotherm.readers import InputSpec, detect_format, load_signal_map, read_runs
 from userdbckit import SIGNALS_TOML, user_log
 
@@ -42,6 +42,9 @@ def test_signal_map_file_forms_and_errors(tmp_path: Path) -> None:
     body = SIGNALS_TOML.split("[can.signals]\n", 1)[1]
     plain.write_text(body, encoding="utf-8")
     assert load_signal_map(plain).rate_message == "ImuAngularRate"
+    daemon = tmp_path / "gyrotherm.toml"  # a daemon config without [can.signals]
+    daemon.write_text('vehicle = "v"\n[can]\ninterface = "virtual"\n', encoding="utf-8")
+    assert load_signal_map(daemon) == SignalMap.default()
     bad = tmp_path / "bad.toml"
     bad.write_text(body.replace("rate_x_signal", "rate_q_signal"), encoding="utf-8")
     with pytest.raises(ConfigError, match=rf"{bad}: unknown key\(s\) \['rate_q_signal'\]"):

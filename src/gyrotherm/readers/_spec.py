@@ -136,8 +136,9 @@ class InputSpec:
 
 def load_signal_map(path: str | os.PathLike[str]) -> SignalMap:
     """The signal map in TOML file ``path``: its ``[can.signals]`` table (so a daemon
-    config works as is), else its ``[signals]`` table, else its top-level keys;
-    keys as :meth:`SignalMap.from_dict`. ConfigError names the file."""
+    config works as is; one with a ``[can]`` table but no ``[can.signals]`` means the
+    default map, as for the daemon), else its ``[signals]`` table, else its top-level
+    keys; keys as :meth:`SignalMap.from_dict`. ConfigError names the file."""
     import tomllib
 
     p = Path(path)
@@ -150,7 +151,9 @@ def load_signal_map(path: str | os.PathLike[str]) -> SignalMap:
     table: object = data
     where = str(p)
     can = data.get("can")
-    if isinstance(can, Mapping) and "signals" in can:
+    if isinstance(can, Mapping):
+        if "signals" not in can:  # a daemon config without the table: the default map
+            return SignalMap.default()
         table, where = can["signals"], f"{p}: [can.signals]"
     elif "signals" in data:
         table, where = data["signals"], f"{p}: [signals]"
