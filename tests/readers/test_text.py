@@ -191,6 +191,19 @@ def test_wrong_field_count_and_missing_column(tmp_path: Path) -> None:
     assert "columns needed: ['timestamp', 'temp', 'gx', 'gy', 'gyro_z']" in msg
 
 
+def test_device_and_run_columns_split_runs_together(tmp_path: Path) -> None:
+    rows = [("0", "7", "cold", "20", "1"), ("0", "7", "hot", "40", "2"),
+            ("1", "7", "cold", "21", "3"), ("0", "8", "cold", "22", "4")]
+    path = write_csv(tmp_path / "g.csv", ["t", "dev", "seg", "temp", "gx"], rows)
+    runs = read_runs(path, spec=spec("time=t:s temperature=temp:degC x=gx:dps device=dev "
+                                     "run=seg"))
+    assert [r.name for r in runs] == ["g:7:cold", "g:7:hot", "g:8:cold"]
+    assert [(r.metadata["device_id"], r.metadata["segment"]) for r in runs] == [
+        ("7", "cold"), ("7", "hot"), ("8", "cold")]
+    np.testing.assert_array_equal(runs[0].temperature_c, [20.0, 21.0])
+    np.testing.assert_array_equal(runs[2].rates_dps["x"], [4.0])
+
+
 def test_device_column_splits_runs(tmp_path: Path) -> None:
     rows = [("0", "7", "20", "1"), ("1", "9", "30", "2"), ("2", "7", "21", "3"),
             ("3", "9", "31", "4")]
@@ -210,6 +223,8 @@ def test_device_column_splits_runs(tmp_path: Path) -> None:
     ("time=t temperature=c:degC x=g:dps", "role 'time' needs a unit"),
     ("time=t:s temperature=c:degC x=g:dps speed=v:m/s", "unknown role 'speed'"),
     ("time=t:s temperature=c:degC x=g:dps x=h:dps", r"role\(s\) \['x'\] given more than once"),
+    ("time=t:s temperature=c:degC x=g:dps run2.csv",
+     r"'run2.csv': expected ROLE=COLUMN\[:UNIT\] \(an input file\? put input files before"),
 ])
 def test_column_map_errors(tokens: str, problem: str) -> None:
     with pytest.raises(ConfigError, match=problem):

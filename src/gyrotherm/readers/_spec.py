@@ -91,7 +91,8 @@ def parse_columns(tokens: Sequence[str]) -> ColumnMap:
         role, eq, rest = token.partition("=")
         role = role.strip()
         if not eq or not rest:
-            raise ConfigError(f"--columns {token!r}: expected ROLE=COLUMN[:UNIT], "
+            hint = "" if eq else " (an input file? put input files before --columns)"
+            raise ConfigError(f"--columns {token!r}: expected ROLE=COLUMN[:UNIT]{hint}, "
                               f"e.g. --columns {EXAMPLE_COLUMNS}")
         if role in GROUP_ROLES:
             roles.append(ColumnRole(role, rest, None))
