@@ -14,7 +14,11 @@ from gyrotherm._errors import RunFileError
 from gyrotherm.readers import InputSpec, parse_columns, read_runs
 
 PX4 = Path(__file__).parent / "data" / "px4-ulog2csv"
-BMI270 = Path("/work/shared/data/measured/bmi270-peltier-laptop/bmi270_static_clean.csv")
+#: The project's measured data next to the checkout (README: ../shared), else /work/shared.
+_BMI270 = Path("data/measured/bmi270-peltier-laptop/bmi270_static_clean.csv")
+BMI270 = next((d / _BMI270 for d in (Path(__file__).resolve().parents[3] / "shared",
+                                     Path("/work/shared")) if (d / _BMI270).is_file()),
+              Path("/work/shared") / _BMI270)
 BMI270_COLUMNS = ("time=t_nominal_s:s temperature=temp_degC:degC x=gyro_x_dps:dps "
                   "y=gyro_y_dps:dps z=gyro_z_dps:dps run=segment")
 
