@@ -144,6 +144,15 @@ def test_units_table_conversions(tmp_path: Path) -> None:
     np.testing.assert_allclose(run.extra["accel_z_mps2"], [9.5, 0.0])
 
 
+def test_one_column_for_two_roles_is_converted_once_each(tmp_path: Path) -> None:
+    path = write_csv(tmp_path / "same.csv", ["t", "c", "g"], [("0", "1", "2"), ("1", "2", "4")])
+    (run,) = read_text(path, columns=parse_columns(
+        "time=t:s temperature=c:degC x=g:mdps y=g:mdps z=g:dps".split()))
+    np.testing.assert_allclose(run.rates_dps["x"], [0.002, 0.004])
+    np.testing.assert_allclose(run.rates_dps["y"], [0.002, 0.004])
+    np.testing.assert_allclose(run.rates_dps["z"], [2.0, 4.0])
+
+
 def test_fahrenheit_millidegrees_nanoseconds(tmp_path: Path) -> None:
     rows = [("0", "212", "25000", "1"), ("1500000000", "32", "-40000", "2")]
     path = write_csv(tmp_path / "f.csv", ["ns", "f", "mc", "r"], rows)

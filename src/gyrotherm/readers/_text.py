@@ -55,18 +55,19 @@ def _column_map(path: Path, head: Header, wanted: ColumnMap | None,
 
 
 def _groups(table: Table, cmap: ColumnMap) -> tuple[list[str], list[tuple[str, ...]],
-                                                   list[NDArray[np.intp]]]:
+                                                   list[NDArray[np.intp] | slice]]:
     """Grouping roles, the key of each group (first appearance order) and its rows."""
     roles = [g for g in GROUP_ROLES if cmap.get(g) is not None]
     if not roles:
-        return roles, [()], [np.arange(table.rows)]
+        return roles, [()], [slice(None)]
     keys = labels(table, [cmap.column_of(g) for g in roles])
     joined = keys[:, 0] if len(roles) == 1 else np.char.add(np.char.add(keys[:, 0], "\x1f"),
                                                             keys[:, 1])
     _, first, inverse = np.unique(joined, return_index=True, return_inverse=True)
     order = np.argsort(first)
-    rows = [np.flatnonzero(inverse == g) for g in order]
-    return roles, [tuple(str(v) for v in keys[r[0]]) for r in rows], rows
+    rows: list[NDArray[np.intp] | slice] = [np.flatnonzero(inverse == g) for g in order]
+    firsts = first[order]
+    return roles, [tuple(str(v) for v in keys[i]) for i in firsts], rows
 
 
 def read_text(path: str | Path, *, columns: ColumnMap | None = None,
@@ -81,9 +82,13 @@ def read_text(path: str | Path, *, columns: ColumnMap | None = None,
     values: dict[str, FloatArray] = {}
     for r in measured:
         assert r.unit is not None
-        v = raw[r.column]
-        values[r.role] = v * r.unit.scale + r.unit.offset if (r.unit.scale, r.unit.offset) \
-            != (1.0, 0.0) else v
+        shared = sum(m.column == r.column for m in measured) > 1
+        v = raw[r.column].copy() if shared else raw[r.column]
+        if (r.unit.scale, r.unit.offset) != (1.0, 0.0):
+            v *= r.unit.scale  # in place: the loaded block is this reader's own
+            v += r.unit.offset
+        values[r.role] = v
+    del raw
     roles, keys, groups = _groups(table, cmap)
     base = {"format": "text", "schema": schema, "columns": cmap.tokens(),
             "delimiter": table.delimiter_name,
@@ -99,8 +104,9 @@ def read_text(path: str | Path, *, columns: ColumnMap | None = None,
         if (steps <= 0).any():
             k = int(np.argmax(steps <= 0)) + 1
             where = f" (run {':'.join(key)})" if roles else ""
+            row = k if isinstance(rows, slice) else int(rows[k])
             raise RunFileError(
-                f"{p}: line {table.line_of(int(rows[k]))}: column "
+                f"{p}: line {table.line_of(row)}: column "
                 f"{cmap.column_of('time')!r}{where}: time not increasing "
                 f"({t[k - 1]:.9g} s then {t[k]:.9g} s)")
         runs.append(Run(

@@ -176,7 +176,7 @@ def numbers(table: Table, columns: list[str]) -> dict[str, FloatArray]:
         cell = split(text, table.delimiter)[index[j]]
         raise RunFileError(f"{table.path}: line {line}: column {columns[j]!r}: "
                            f"{cell!r} is not a finite number")
-    return {c: values[:, j].copy() for j, c in enumerate(columns)}
+    return {c: values[:, j] for j, c in enumerate(columns)}  # views: Run copies them
 
 
 def _python_numbers(table: Table, columns: list[str], index: list[int]) -> FloatArray:
