@@ -71,6 +71,13 @@ def test_detect_format(tmp_path: Path) -> None:
         detect_format(tmp_path / "empty-dir")
     (read,) = read_runs(tmp_path / "run.csv", spec=InputSpec())
     assert (read.metadata["format"], read.metadata["device_id"]) == ("run", "")
+    # a run file saved with a BOM by an editor: read as text with the run-file columns
+    bom = tmp_path / "bom.csv"
+    bom.write_bytes(b"\xef\xbb\xbf" + (tmp_path / "run.csv").read_bytes())
+    (again,) = read_runs(bom, spec=InputSpec())
+    assert again.metadata["format"] == "text"
+    np.testing.assert_array_equal(again.rates_dps["x"], read.rates_dps["x"])
+    np.testing.assert_array_equal(again.time_s, read.time_s)
 
 
 def test_missing_reader_module_and_unknown_format(

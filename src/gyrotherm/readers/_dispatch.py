@@ -51,8 +51,8 @@ def detect_format(path: str | os.PathLike[str]) -> str:
             head = fh.read(len(_MAGIC) + 3)
     except OSError as exc:
         raise RunFileError(f"{p}: cannot read: {exc.strerror}") from exc
-    if head.removeprefix(b"\xef\xbb\xbf").startswith(_MAGIC):
-        return "run"
+    if head.startswith(_MAGIC):
+        return "run"  # (with a BOM, codecs.read_run refuses it: read as text below)
     return "candump" if is_candump_log(p) else "text"
 
 

@@ -189,11 +189,11 @@ def _python_numbers(table: Table, columns: list[str], index: list[int]) -> Float
         for j, i in enumerate(index):
             try:
                 out.append(float(fields[i]))
-            except ValueError:
+            except ValueError as exc:
                 cell = fields[i]
                 raise RunFileError(
                     f"{table.path}: line {line_no}: column {columns[j]!r}: "
-                    f"{cell!r} is {'blank' if not cell else 'not a number'}") from None
+                    f"{cell!r} is {'blank' if not cell else 'not a number'}") from exc
     return np.frombuffer(out, np.float64).reshape(-1, len(index))
 
 
