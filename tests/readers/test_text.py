@@ -88,6 +88,18 @@ def test_crlf_quoted_fields_and_not_utf8(tmp_path: Path) -> None:
         read_runs(bad, spec=spec())
 
 
+def test_decimal_comma_with_semicolons(tmp_path: Path) -> None:
+    rows = [(t, c.replace(".", ","), x, y, z) for t, c, x, y, z in LOGGER_ROWS]
+    path = write_csv(tmp_path / "excel.csv", ["timestamp", "temp", "gx", "gy", "gz"], rows,
+                     delimiter=";", bom=True)
+    assert b"20,75;" in path.read_bytes()
+    assert_logger_values(read_runs(path, spec=spec()), path)
+    comma = write_csv(tmp_path / "comma.csv", ["timestamp", "temp", "gx", "gy", "gz"],
+                      [(*LOGGER_ROWS[0][:1], "20,5", *LOGGER_ROWS[0][2:])])  # quoted by csv
+    with pytest.raises(RunFileError, match="column 'temp': '20,5' is not a number"):
+        read_runs(comma, spec=spec())
+
+
 def test_whitespace_columns_and_comment_lines(tmp_path: Path) -> None:
     path = tmp_path / "ws.txt"
     lines = ["# exported by a logger", "timestamp   temp  gx gy gz"]

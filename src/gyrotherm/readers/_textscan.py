@@ -179,8 +179,20 @@ def numbers(table: Table, columns: list[str]) -> dict[str, FloatArray]:
     return {c: values[:, j] for j, c in enumerate(columns)}  # views: Run copies them
 
 
+def _number(cell: str, delimiter: str) -> float:
+    """``float(cell)``; where the delimiter is not a comma, a decimal comma
+    (``20,5``, as spreadsheets write in many locales) is accepted too."""
+    try:
+        return float(cell)
+    except ValueError:
+        if delimiter == "," or cell.count(",") != 1 or "." in cell:
+            raise
+        return float(cell.replace(",", "."))
+
+
 def _python_numbers(table: Table, columns: list[str], index: list[int]) -> FloatArray:
-    """What loadtxt refused, cell by cell: the first bad cell is an error."""
+    """What loadtxt refused, cell by cell (decimal commas accepted, see
+    :func:`_number`): the first bad cell is an error."""
     out = array("d")
     for line_no, line in lines(table.path):
         if line_no <= table.header_line or _skip(line):
@@ -188,7 +200,7 @@ def _python_numbers(table: Table, columns: list[str], index: list[int]) -> Float
         fields = split(line, table.delimiter)
         for j, i in enumerate(index):
             try:
-                out.append(float(fields[i]))
+                out.append(_number(fields[i], table.delimiter))
             except ValueError as exc:
                 cell = fields[i]
                 raise RunFileError(
