@@ -9,6 +9,7 @@ from collections.abc import Callable, Sequence
 from gyrotherm.codecs import Run, read_run
 from gyrotherm.codecs._candump_run import is_candump_log, run_from_candump
 from gyrotherm.estimators import EstimatorConfig
+from gyrotherm.readers import InputSpec, read_runs
 
 
 def progress(label: str, *, quiet: bool = False) -> Callable[[int, int], None]:
@@ -30,12 +31,15 @@ def load_run(path: str) -> Run:
     return run_from_candump(path) if is_candump_log(path) else read_run(path)
 
 
-def load_runs(paths: Sequence[str], *, quiet: bool = False) -> list[Run]:
-    """:func:`load_run` of every path, with a progress line."""
+def load_runs(paths: Sequence[str], *, quiet: bool = False,
+              spec: InputSpec | None = None) -> list[Run]:
+    """Every run in ``paths`` (:func:`gyrotherm.readers.read_runs`: run files, candump
+    logs, delimited text, flight logs; ``spec`` = the input options, default auto),
+    with a progress line."""
     report = progress("reading runs", quiet=quiet)
     runs = []
     for i, p in enumerate(paths):
-        runs.append(load_run(p))
+        runs.extend(read_runs(p, spec=spec or InputSpec()))
         report(i + 1, len(paths))
     return runs
 

@@ -12,13 +12,16 @@ from typing import Any
 
 from gyrotherm._errors import ConfigError, RunFileError
 from gyrotherm.cli._common import load_runs
+from gyrotherm.cli._inputs import add_input_options, spec_from_args
 from gyrotherm.codecs import Run
+from gyrotherm.readers import InputSpec
 
 
-def load(paths: Sequence[str], *, quiet: bool = False) -> list[Run]:
+def load(paths: Sequence[str], *, quiet: bool = False,
+         spec: InputSpec | None = None) -> list[Run]:
     """Run files (CSV version 1) and ``candump -l`` logs (told apart by content,
     see :func:`gyrotherm.cli._common.load_run`); run names must be unique."""
-    runs = load_runs(paths, quiet=quiet)
+    runs = load_runs(paths, quiet=quiet, spec=spec)
     names = [r.name for r in runs]
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
@@ -54,7 +57,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     quiet = bool(getattr(args, "quiet", False))
     if args.margin <= 0 or args.margin >= 1:
         raise ConfigError(f"--margin = {args.margin!r} is outside (0, 1)")
-    runs = load(args.runs, quiet=quiet)
+    runs = load(args.runs, quiet=quiet, spec=spec_from_args(args))
     start = time.perf_counter()
 
     def say(msg: str) -> None:
@@ -108,8 +111,8 @@ def _write_calibration(args: argparse.Namespace, runs: Sequence[Run], result: An
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("runs", nargs="+",
-                   help="run files (CSV version 1) or candump -l logs (shipped DBC), ≥ 2, "
-                   "one device")
+                   help="run files, delimited text, candump -l logs, flight logs (see the "
+                   "input options), ≥ 2 runs, one device")
     p.add_argument("--json", required=True,
                    help="write the diagnosis (schema gyrotherm.diagnosis/1) here; '-' = stdout")
     p.add_argument("--report", metavar="DIR", help="also write report.md and PNG plots to DIR")
@@ -125,6 +128,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "axis the runs share: --axis gets the diagnosis' effects, each other "
                    "axis its own selection (paper model where nothing is found); "
                    "coefficients refitted on the stored estimator's output")
+    add_input_options(p)
     p.set_defaults(func=cmd_diagnose)
 
 

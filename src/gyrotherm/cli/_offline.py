@@ -10,9 +10,9 @@ from pathlib import Path
 from gyrotherm.cli._common import (
     add_estimator_options,
     estimator_from_args,
-    load_runs,
     progress,
 )
+from gyrotherm.cli._inputs import add_input_options, load_inputs
 from gyrotherm.cli._tables import coefficient_table, error_table, score_table
 from gyrotherm.codecs import Run, write_run
 from gyrotherm.compensation import (
@@ -51,7 +51,7 @@ def cmd_sim_chamber(args: argparse.Namespace) -> int:
 
 
 def _features(args: argparse.Namespace, est: EstimatorConfig) -> list[RunFeatures]:
-    runs = load_runs(args.runs, quiet=args.quiet)
+    runs = load_inputs(args)
     report = progress("estimating T and ΔT", quiet=args.quiet)
     out = []
     for i, run in enumerate(runs):
@@ -221,7 +221,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     _stream_cli.register(sim_sub)
 
     f = sub.add_parser("fit", help="fit a bias model to run files and write a calibration")
-    f.add_argument("runs", nargs="+", help="run files (CSV version 1) or candump logs")
+    f.add_argument("runs", nargs="+", help="run files, delimited text, candump logs, flight logs "
+                   "(see the input options)")
     f.add_argument("--model", choices=sorted(MODELS), default="paper")
     f.add_argument("--method", choices=METHODS, default="pooled")
     f.add_argument("--out", required=True, help="calibration file to write (JSON)")
@@ -233,12 +234,15 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "constants and hysteresis transition searched as 'diagnose' does "
                    "(≥ 2 runs; writes a version-2 calibration)")
     add_estimator_options(f)
+    add_input_options(f)
     f.set_defaults(func=cmd_fit)
 
     e = sub.add_parser("evaluate", help="score a calibration on run files (Table 2 style)")
     e.add_argument("calibration", help="calibration file (JSON)")
-    e.add_argument("runs", nargs="+", help="run files (CSV version 1) or candump logs")
+    e.add_argument("runs", nargs="+", help="run files, delimited text, candump logs, flight logs "
+                   "(see the input options)")
     e.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    add_input_options(e)
     e.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("paper", help="reproduce Tables 1 and 2 on simulated chamber runs")

@@ -1,0 +1,71 @@
+"""The input options shared by ``fit``, ``evaluate``, ``diagnose`` and ``import``.
+
+:func:`add_input_options` adds them to a parser once; :func:`load_inputs` reads
+every input path with :func:`gyrotherm.readers.read_runs` (several runs per file
+when a log holds several devices or ``--columns`` names a ``device``/``run``
+column).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from gyrotherm.codecs import Run
+from gyrotherm.readers import FORMATS, InputSpec, load_signal_map, parse_columns
+
+_DELIMITERS = {"comma": ",", "semicolon": ";", "tab": "\t", "whitespace": " "}
+
+
+def add_input_options(parser: argparse.ArgumentParser) -> None:
+    """``--format``, ``--columns``, ``--delimiter``, ``--dbc``, ``--signals``,
+    ``--imu-topic``, ``--temperature-topic`` (see docs/inputs.md)."""
+    g = parser.add_argument_group(
+        "input (see docs/inputs.md)",
+        "Inputs are gyrotherm run files, delimited text (CSV, TSV, ';'), candump -l logs, "
+        "PX4 .ulg, ArduPilot .bin, rosbag2/MCAP; the format is told from the name and "
+        "content. Put input files before --columns (it takes several values).")
+    g.add_argument("--format", choices=FORMATS, default="auto",
+                   help="read every input as this format (default auto)")
+    g.add_argument("--columns", nargs="+", action="extend", metavar="ROLE=COL:UNIT",
+                   help="column map of delimited text, e.g. time=timestamp:us "
+                   "temperature=temp:degC x=gx:rad/s y=gy:rad/s z=gz:rad/s; roles time, "
+                   "temperature, x, y, z, accel_x/y/z, device, run (default: recognise "
+                   "run-file and PX4 ulog2csv sensor_gyro headers)")
+    g.add_argument("--delimiter", choices=list(_DELIMITERS),
+                   help="delimiter of delimited text (default: detected from the header)")
+    g.add_argument("--dbc", metavar="FILE",
+                   help="DBC of candump logs (default: the shipped gyro.dbc)")
+    g.add_argument("--signals", metavar="FILE.toml",
+                   help="signal map of candump logs: a TOML file with the daemon's "
+                   "[can.signals] table (a daemon config works) (default: the shipped map)")
+    g.add_argument("--imu-topic", metavar="TOPIC",
+                   help="rosbag2/MCAP sensor_msgs/msg/Imu topic (default: auto)")
+    g.add_argument("--temperature-topic", metavar="TOPIC",
+                   help="rosbag2/MCAP temperature topic (default: auto)")
+
+
+def spec_from_args(args: argparse.Namespace) -> InputSpec:
+    """The :class:`InputSpec` of parsed input options (ConfigError on a bad value)."""
+    columns = getattr(args, "columns", None)
+    delimiter = getattr(args, "delimiter", None)
+    dbc = getattr(args, "dbc", None)
+    signals = getattr(args, "signals", None)
+    return InputSpec(
+        format=getattr(args, "format", "auto"),
+        columns=parse_columns(columns) if columns else None,
+        delimiter=_DELIMITERS[delimiter] if delimiter else None,
+        dbc=Path(dbc) if dbc else None,
+        signals=load_signal_map(signals) if signals else None,
+        imu_topic=getattr(args, "imu_topic", None),
+        temperature_topic=getattr(args, "temperature_topic", None),
+    )
+
+
+def load_inputs(args: argparse.Namespace, paths: list[str] | None = None) -> list[Run]:
+    """Every run in ``paths`` (default ``args.runs``), read as the input options say,
+    with a progress line unless ``args.quiet``."""
+    from gyrotherm.cli._common import load_runs
+
+    return load_runs(list(args.runs if paths is None else paths),
+                     quiet=bool(getattr(args, "quiet", False)), spec=spec_from_args(args))
