@@ -141,3 +141,11 @@ def test_swapped_arguments_get_a_hint(
     assert main(["-q", "evaluate", str(cal), runs[0], "--json", runs[1]]) == 2
     assert f"--json {runs[1]}: is an existing run file" in capsys.readouterr().err
     assert Path(runs[1]).read_bytes() == before
+
+
+def test_paper_json_replaces_both_tables(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["paper", "--rate-hz", "0.5", "--json", "-q"]) == 0
+    doc = json.loads(capsys.readouterr().out)  # nothing but the JSON on stdout
+    assert list(doc["table1"]["rows"])[-2:] == ["mean (eq. 12)", "pooled"]
+    assert doc["table1"]["truth"]["T*dT"] == pytest.approx(-0.0004)
+    assert "paper (eq.12)" in doc["table2"]["columns"]

@@ -233,9 +233,11 @@ def paper_tables(args: argparse.Namespace) -> tuple[Run, Calibration]:
     axis = args.axis
     rows = [(f"{m:g} min", c) for m, c in zip(PAPER_HEATING_MIN, per_run, strict=True)]
     rows += [("mean (eq. 12)", avg), ("pooled", pooled)]
-    print(coefficient_table(rows, axis, truth=dict(gyro.bias.coefficients[axis]),
-                            title=f"Table 1 — paper model per heating run, axis {axis} "
-                            "(bias °/s; T, ΔT °C; truth = the simulator's coefficients)"))
+    as_json = getattr(args, "json", None)
+    if not as_json:
+        print(coefficient_table(rows, axis, truth=dict(gyro.bias.coefficients[axis]),
+                                title=f"Table 1 — paper model per heating run, axis {axis} "
+                                "(bias °/s; T, ΔT °C; truth = the simulator's coefficients)"))
     columns = []
     for i in (0, 5, 6):
         t2 = fit([train[i]], "t2", estimator=est, scaling=scaling)
@@ -243,6 +245,15 @@ def paper_tables(args: argparse.Namespace) -> tuple[Run, Calibration]:
     columns.append(("t3 pooled", score(fit(train, "t3", estimator=est, scaling=scaling), vfeat)))
     columns.append(("paper (eq.12)", score(avg, vfeat)))
     columns.append(("paper pooled", score(pooled, vfeat)))
+    if as_json:
+        conv.emit_json({
+            "table1": {"axis": axis, "units": "bias °/s; T, ΔT °C",
+                       "rows": {name: c.physical_coefficients(axis) for name, c in rows},
+                       "truth": dict(gyro.bias.coefficients[axis])},
+            "table2": {"run": valid.name,
+                       "columns": {name: [s.to_dict() for s in sc] for name, sc in columns}},
+        }, as_json)
+        return valid, avg
     print()
     print(error_table(columns, title="Table 2 — validation run (60 min heating), "
                       "errors after compensation, mean over axes x, y, z"))
@@ -306,4 +317,5 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--out", metavar="DIR",
                    help="also write the simulated runs to this DIRECTORY (created; "
                    "default: not written)")
+    conv.add_json_option(p, what="Tables 1 and 2")
     p.set_defaults(func=cmd_paper)
