@@ -266,7 +266,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     ch = sim_sub.add_parser("chamber", help="simulate chamber heating runs into run files")
     ch.add_argument("--heating-min", type=float, nargs="+", default=None,
                     help="heating times, min (default: the paper's 5 10 20 30 40 50 60)")
-    ch.add_argument("--out", required=True,
+    ch.add_argument("--out", required=True, metavar="DIR",
                     help="DIRECTORY for the run files, one per run (created with its parents)")
     ch.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     ch.add_argument("--rate-hz", type=float, default=10.0, help="sample rate, Hz (default 10)")
@@ -286,7 +286,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="bias model: paper (T, ΔT), t2/t3 (temperature-only polynomials)")
     f.add_argument("--method", choices=METHODS, default="pooled",
                    help="pooled least squares, or paper-average (eq. 12: mean of per-run fits)")
-    f.add_argument("--out", required=True,
+    f.add_argument("--out", required=True, metavar="FILE",
                    help="calibration FILE to write (JSON; parent directories created; "
                    "never over a run file)")
     f.add_argument("--no-validation", action="store_true",
