@@ -140,6 +140,10 @@ def test_swapped_arguments_get_a_hint(
     assert f"--out {runs[1]}: is an existing run file" in capsys.readouterr().err
     assert main(["-q", "evaluate", str(cal), runs[0], "--json", runs[1]]) == 2
     assert f"--json {runs[1]}: is an existing run file" in capsys.readouterr().err
+    fresh = tmp_path / "fresh.json"  # checked before any work: no calibration written
+    assert main(["-q", "fit", runs[0], "--out", str(fresh), "--json", runs[1]]) == 2
+    assert f"--json {runs[1]}: is an existing run file" in capsys.readouterr().err
+    assert not fresh.exists()
     assert Path(runs[1]).read_bytes() == before
 
 
@@ -149,3 +153,11 @@ def test_paper_json_replaces_both_tables(capsys: pytest.CaptureFixture[str]) -> 
     assert list(doc["table1"]["rows"])[-2:] == ["mean (eq. 12)", "pooled"]
     assert doc["table1"]["truth"]["T*dT"] == pytest.approx(-0.0004)
     assert "paper (eq.12)" in doc["table2"]["columns"]
+
+
+def test_outputs_get_their_parent_directories(tmp_path: Path) -> None:
+    log = tmp_path / "a" / "b" / "bus.log"
+    assert main(["sim", "stream", "--chamber", "1", "--rate-hz", "1", "--hold-s", "30",
+                 "--interface", "none", "--write-candump", str(log), "--speed", "0",
+                 "-q"]) == 0
+    assert log.read_text().startswith("(")

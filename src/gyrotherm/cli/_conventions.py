@@ -63,6 +63,13 @@ def emit_json(data: Any, target: str) -> Path | None:
     return path
 
 
+def check_json_target(target: str | None) -> None:
+    """``--json FILE`` checked (parents created, not a run file) before any work, so
+    that a bad target does not fail after other outputs were written."""
+    if target is not None and target != STDOUT:
+        output_path(target, option="--json")
+
+
 def output_path(target: str | Path, *, option: str) -> Path:
     """``target`` ready to be written: its parent directories created; refused (with a
     hint) when it is an existing run file, which an output would destroy."""
@@ -178,6 +185,7 @@ __all__ = [
     "add_quiet",
     "apply",
     "check_calibration_first",
+    "check_json_target",
     "check_runs",
     "emit_json",
     "looks_like_calibration",

@@ -55,6 +55,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     if args.margin <= 0 or args.margin >= 1:
         raise ConfigError(f"--margin = {args.margin!r} is outside (0, 1)")
     conv.check_runs(args.runs, command="diagnose")
+    conv.check_json_target(args.json)
     runs = load(args.runs, quiet=quiet)
     start = time.perf_counter()
 

@@ -70,6 +70,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     names = _effect_names(args)
     conv.check_runs(args.runs, command="fit")
     conv.output_path(args.out, option="--out")
+    conv.check_json_target(args.json)
     feats = _features(args, est)
     if names:
         return _fit_effects(args, est, feats, names)
@@ -175,6 +176,7 @@ def _fit_effects(args: argparse.Namespace, est: EstimatorConfig, feats: list[Run
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     conv.check_calibration_first(args.calibration, args.runs, command="evaluate")
+    conv.check_json_target(args.json)
     cal = load_calibration(args.calibration)
     feats = _features(args, cal.estimator)
     scores = [s for f in feats for s in score(cal, f)]

@@ -32,6 +32,7 @@ import sys
 import threading
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING
 
@@ -206,6 +207,7 @@ def cmd_stream(args: argparse.Namespace) -> int:
     with _stop_on_signals(stop) as signals:
         try:
             if args.write_candump is not None:
+                Path(args.write_candump).parent.mkdir(parents=True, exist_ok=True)
                 sinks.append(CandumpSink(args.write_candump, channel=args.channel))
                 extra["candump"] = args.write_candump
             if _serves(args):
