@@ -152,3 +152,24 @@ def test_fit_and_evaluate_write_the_report(runs: list[Run], tmp_path: Path) -> N
             assert (rep / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         for n in names:
             assert f"| {n} | x |" in md
+
+
+def test_version2_calibration_drawn_with_its_effects(
+        fitted: tuple[Calibration, list[RunFeatures]]) -> None:
+    """With effects the model along the data includes them (the online compensator's
+    bias); the ΔT = 0 curve is the polynomial alone and says so."""
+    from dataclasses import replace
+
+    from gyrotherm.compensation._effects import Effects, Warmup
+
+    cal, feats = fitted
+    v2 = replace(cal, effects={AXIS: Effects(warmup=Warmup(amplitude_dps=0.2, tau_s=300.0))})
+    assert v2.version == 2
+    (ax,) = figure_bias_vs_temperature(v2, feats, AXIS).axes
+    assert "fitted model at ΔT = 0 °C (polynomial only: effects need the history)" in \
+        _legend(ax)
+    solid = [ln for ln in ax.get_lines() if ln.get_linestyle() == "-"]
+    f = feats[0]
+    with_effects = v2.bias_series(AXIS, f.temperature_c, f.delta_t_c, f.time_s)[0]
+    np.testing.assert_allclose(solid[0].get_ydata(), block_means(f.time_s, with_effects)[1])
+    assert not np.allclose(solid[0].get_ydata(), _blocks(cal, f)[4])  # the warm-up shows

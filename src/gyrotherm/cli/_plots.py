@@ -91,7 +91,9 @@ def figure_bias_vs_temperature(cal: Calibration, feats: Sequence[RunFeatures], a
     r = cal.valid_range
     grid = np.linspace(r.t_min_c, r.t_max_c, 200)
     curve = cal.base_series(axis, grid, np.zeros_like(grid))
-    ax.plot(grid, curve, color="k", ls="--", lw=1.2, label="fitted model at ΔT = 0 °C")
+    ax.plot(grid, curve, color="k", ls="--", lw=1.2, label="fitted model at ΔT = 0 °C"
+            + (" (polynomial only: effects need the history)" if cal.effect_names(axis)
+               else ""))
     ax.set_xlabel("temperature T (°C)")
     ax.set_ylabel(f"rate {axis} at rest = bias (°/s)")
     ax.set_title(f"Bias against temperature, axis {axis} (model {cal.model.name})", fontsize=10)
