@@ -3,153 +3,36 @@
 Files written to the report directory:
 
 * ``report.md``;
-* ``measured_vs_simulated.png``: 1-s output of up to three runs, measured,
-  simulated with the baseline and with the extended model;
+* ``measured_vs_simulated.png``: every run's output (60-s means), measured and
+  simulated with the baseline and with the extended model in distinct styles, the
+  simulated − measured differences below, T at the bottom;
 * ``residual_vs_temperature.png``: baseline residual against T, heating and
   cooling (direction of the last move) apart, with 2 °C bin means;
 * ``residual_vs_time.png``: baseline and extended residuals against time
   since power-on (60-s means);
-* ``before_after.png``: held-out RMS per left-out run, baseline vs extended;
+* ``before_after.png``: per run (every run), the raw output's RMS, the baseline's and
+  the extended model's held-out RMS side by side (log scale), and below the change
+  extended − baseline (°/s);
 * ``allan.png``: Allan deviation of the residuals, measured vs simulated.
+
+The figures are drawn by :mod:`._figures`.
 """
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
-
-import numpy as np
 
 from gyrotherm.analysis._compare import SimulationComparison
 from gyrotherm.analysis._diagnose import Diagnosis
-from gyrotherm.analysis._stats import allan_deviation
-
-
-def _plt() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _means(x: np.ndarray, y: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
-    k = np.floor(x / width)
-    keys, inv, counts = np.unique(k, return_inverse=True, return_counts=True)
-    sums = np.bincount(inv, weights=y)
-    ok = counts >= 10
-    return (keys[ok] + 0.5) * width, sums[ok] / counts[ok]
-
-
-def plot_measured_vs_simulated(d: Diagnosis, path: Path) -> None:
-    plt = _plt()
-    sim = d.simulation
-    n = min(3, len(d.prepared))
-    fig, axes = plt.subplots(2, n, figsize=(5 * n, 6), squeeze=False, sharex="col")
-    for j in range(n):
-        p = d.prepared[j]
-        ax = axes[0][j]
-        ax.plot(p.time_s / 60, p.rate_dps - d.baseline.offsets_dps[p.name], lw=0.5,
-                label="measured", color="k")
-        if sim is not None:
-            for preps, label, color in ((sim.prepared, "simulated (paper)", "tab:blue"),
-                                        (sim.extended_prepared, "simulated (extended)",
-                                         "tab:red")):
-                q = preps[j]
-                ax.plot(q.time_s / 60, q.rate_dps - np.mean(q.rate_dps) + np.mean(
-                    p.rate_dps - d.baseline.offsets_dps[p.name]), lw=0.5, label=label,
-                    color=color, alpha=0.8)
-        ax.set_title(p.name, fontsize=9)
-        ax.set_ylabel(f"rate {d.axis}, offset removed (°/s)")
-        axes[1][j].plot(p.time_s / 60, p.temperature_c, color="tab:orange")
-        axes[1][j].set_xlabel("time since power-on (min)")
-        axes[1][j].set_ylabel("T (°C)")
-    axes[0][0].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def plot_residual_vs_temperature(d: Diagnosis, path: Path) -> None:
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    t = np.concatenate([p.temperature_c for p in d.prepared])
-    h = np.concatenate([p.direction for p in d.prepared])
-    e = np.concatenate(d.residuals)
-    for sign, label, color in ((1, "heating (last move up)", "tab:red"),
-                               (-1, "cooling (last move down)", "tab:blue"),
-                               (0, "before the first move", "0.6")):
-        m = h == sign
-        if m.any():
-            ax.scatter(t[m][::5], e[m][::5], s=1, color=color, alpha=0.25)
-            if sign:
-                bx, by = _means(t[m], e[m], 2.0)
-                ax.plot(bx, by, color=color, lw=2, label=label)
-    ax.axhline(0, color="k", lw=0.5)
-    ax.set_xlabel("T (°C)")
-    ax.set_ylabel("baseline residual (°/s)")
-    ax.set_title("Paper-model residual against temperature, heating vs cooling")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def plot_residual_vs_time(d: Diagnosis, path: Path) -> None:
-    plt = _plt()
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
-    for ax, resid, title in ((axes[0], d.residuals, "baseline (paper)"),
-                             (axes[1], d.extended_residuals, f"extended ({d.extended.name})")):
-        for p, e in zip(d.prepared, resid, strict=True):
-            bx, by = _means(p.time_s, e, 60.0)
-            ax.plot(bx / 60, by, lw=1, label=p.name)
-        ax.axhline(0, color="k", lw=0.5)
-        ax.set_title(title, fontsize=9)
-        ax.set_xlabel("time since power-on (min)")
-    axes[0].set_ylabel("residual, 60-s means (°/s)")
-    axes[0].legend(fontsize=6)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def plot_before_after(d: Diagnosis, path: Path) -> None:
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(max(5, 1.1 * len(d.prepared)), 4))
-    x = np.arange(len(d.prepared))
-    ax.bar(x - 0.2, d.heldout_baseline, 0.4, label=f"paper: {d.baseline_heldout_rms_dps:.4g}")
-    ax.bar(x + 0.2, d.heldout_extended, 0.4,
-           label=f"{d.extended.name}: {d.extended_heldout_rms_dps:.4g}")
-    ax.set_xticks(x, [p.name for p in d.prepared], rotation=30, ha="right", fontsize=7)
-    ax.set_ylabel("held-out RMS (°/s, 1-s blocks)")
-    ax.set_title(f"Leave-one-run-out, gain {d.gain:.2f}")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def plot_allan(d: Diagnosis, path: Path) -> None:
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(6, 4.5))
-    longest = max(len(p) for p in d.prepared)
-    taus = np.unique(np.geomspace(1, max(2, longest // 3), 25).astype(int))
-    curves = [("measured, paper residual", d.residuals, "k")]
-    if d.simulation is not None:
-        curves.append(("simulated, paper residual", d.simulation.residuals, "tab:blue"))
-    curves.append(("measured, extended residual", d.extended_residuals, "tab:red"))
-    for label, resid, color in curves:
-        adev = [allan_deviation(resid, int(m)) for m in taus]
-        ax.loglog(taus, adev, label=label, color=color)
-    ax.set_xlabel("averaging time τ (s)")
-    ax.set_ylabel("Allan deviation (°/s)")
-    ax.grid(True, which="both", lw=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+from gyrotherm.analysis._figures import (
+    plot_allan,
+    plot_before_after,
+    plot_measured_vs_simulated,
+    plot_residual_vs_temperature,
+    plot_residual_vs_time,
+    raw_rms,
+)
 
 
 def _fmt(v: float | None) -> str:
@@ -232,6 +115,7 @@ def write_report(d: Diagnosis, directory: str | Path) -> Path:
         "",
         "| model | held-out RMS (°/s) | gain |",
         "|---|---|---|",
+        f"| raw output, each run's mean removed (no model) | {_fmt(raw_rms(d)[1])} | — |",
         f"| paper (baseline) | {_fmt(d.baseline_heldout_rms_dps)} | 1 |",
         f"| {d.extended.name} | {_fmt(d.extended_heldout_rms_dps)} | {d.gain:.3f} |",
         "",

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 
 from gyrotherm import __version__
 from gyrotherm._errors import GyrothermError
-from gyrotherm.cli import _demo, _diagnose, _import, _offline, _run
+from gyrotherm.cli import _conventions, _demo, _diagnose, _import, _offline, _run
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -25,15 +25,17 @@ def build_parser() -> argparse.ArgumentParser:
     _demo.register(sub)
     _import.register(sub)
     sub.add_parser("listen", help="live view of a sensor's Zenoh stream (see: listen --help)")
-    return parser
+    return _conventions.apply(parser)  # defaults in every help, -q after the subcommand
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args_list = list(sys.argv[1:] if argv is None else argv)
-    if args_list[:1] == ["listen"]:  # the live view has its own parser
+    quiet = args_list[:1] in (["-q"], ["--quiet"])
+    if args_list[quiet:quiet + 1] == ["listen"]:  # the live view has its own parser
         from gyrotherm.client import listen_main
 
-        return listen_main(args_list[1:])
+        return listen_main(args_list[quiet + 1:], quiet=quiet,
+                           formatter_class=_conventions.DefaultsFormatter)
     parser = build_parser()
     args = parser.parse_args(args_list)
     try:

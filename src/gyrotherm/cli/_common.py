@@ -13,13 +13,16 @@ from gyrotherm.readers import InputSpec, read_runs
 
 
 def progress(label: str, *, quiet: bool = False) -> Callable[[int, int], None]:
-    """A callback printing ``label: i/n`` on stderr (a single updating line)."""
+    """A callback printing ``label: i/n`` on stderr: a single updating line on a
+    terminal; elsewhere (a log, a pipe) one plain line when done, never ``\\r``."""
+    tty = sys.stderr.isatty()
 
     def report(done: int, total: int) -> None:
-        if quiet:
+        if quiet or not (tty or done == total):
             return
         end = "\n" if done == total else ""
-        print(f"\r{label}: {done}/{total}", end=end, file=sys.stderr, flush=True)
+        print(f"\r{label}: {done}/{total}" if tty else f"{label}: {done}/{total}", end=end,
+              file=sys.stderr, flush=True)
 
     return report
 

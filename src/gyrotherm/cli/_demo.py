@@ -146,10 +146,12 @@ def _stream(run: Any, cal_path: Path, *, speed: float) -> tuple[RunSummary, _Liv
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     demo = sub.add_parser("demo", help="the whole chain on embedded defaults (fit, then stream)")
-    demo.add_argument("--seed", type=int, default=1)
+    demo.add_argument("--seed", type=int, default=1, help="random seed")
     demo.add_argument("--rate-hz", type=float, default=10.0, help="sample rate, Hz")
-    demo.add_argument("--axis", choices=("x", "y", "z"), default="x")
+    demo.add_argument("--axis", choices=("x", "y", "z"), default="x", help="axis of Table 1")
     demo.add_argument("--speed", type=float, default=300.0,
                       help="playback speed, × real time (0 = as fast as possible)")
-    demo.add_argument("--out", default=None, help="also write the simulated runs here")
+    demo.add_argument("--out", default=None, metavar="DIR",
+                      help="also write the simulated runs to this DIRECTORY (created; "
+                      "default: not written)")
     demo.set_defaults(func=cmd_demo)

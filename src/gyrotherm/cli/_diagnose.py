@@ -1,16 +1,16 @@
-"""``gyrotherm diagnose RUNS... --json OUT [--report DIR] [--axis x|y|z] [--calibration CAL]``."""
+"""``gyrotherm diagnose RUNS... [--json [FILE]] [--report DIR] [--axis x|y|z]
+[--calibration CAL]``."""
 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from collections.abc import Callable, Sequence
-from pathlib import Path
 from typing import Any
 
 from gyrotherm._errors import ConfigError, RunFileError
+from gyrotherm.cli import _conventions as conv
 from gyrotherm.cli._common import load_runs
 from gyrotherm.cli._inputs import add_input_options, spec_from_args
 from gyrotherm.codecs import Run
@@ -57,6 +57,8 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     quiet = bool(getattr(args, "quiet", False))
     if args.margin <= 0 or args.margin >= 1:
         raise ConfigError(f"--margin = {args.margin!r} is outside (0, 1)")
+    conv.check_runs(args.runs, command="diagnose")
+    conv.check_json_target(args.json)
     runs = load(args.runs, quiet=quiet, spec=spec_from_args(args))
     start = time.perf_counter()
 
@@ -72,16 +74,11 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         say(line)
     data["notes"] = [*data["notes"], *lost]
     data["elapsed_s"] = round(time.perf_counter() - start, 3)
-    out = Path(args.json)
-    if str(out) == "-":
-        json.dump(data, sys.stdout, indent=2)
-        print()
-    else:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+    out = conv.emit_json(data, args.json) if args.json else None
+    if out is not None:
         say(f"wrote {out}")
     if args.report:
-        md = write_report(result, args.report)
+        md = write_report(result, conv.output_dir(args.report, option="--report"))
         say(f"wrote {md}")
     if args.calibration:
         _write_calibration(args, runs, result, say)
@@ -101,7 +98,7 @@ def _write_calibration(args: argparse.Namespace, runs: Sequence[Run], result: An
 
     fitted = export_calibration(runs, result, margin=args.margin, progress=say)
     cal = fitted.calibration
-    path = cal.save(args.calibration)
+    path = cal.save(conv.output_path(args.calibration, option="--calibration"))
     for axis in cal.axes:
         say(f"calibration axis {axis}: paper{''.join('+' + e for e in cal.effect_names(axis))}"
             f", leave-one-run-out RMS {fitted.baseline_heldout_rms_dps[axis]:.4g} → "
@@ -113,9 +110,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("runs", nargs="+",
                    help="run files, delimited text, candump -l logs, flight logs (see the "
                    "input options), ≥ 2 runs, one device")
-    p.add_argument("--json", required=True,
-                   help="write the diagnosis (schema gyrotherm.diagnosis/1) here; '-' = stdout")
-    p.add_argument("--report", metavar="DIR", help="also write report.md and PNG plots to DIR")
+    conv.add_json_option(p, what="the diagnosis (schema gyrotherm.diagnosis/1)")
+    p.add_argument("--report", metavar="DIR",
+                   help="also write report.md and PNG plots to DIR (created; default: none)")
     p.add_argument("--axis", choices=("x", "y", "z"),
                    help="rate axis (default: the first rate column present)")
     p.add_argument("--margin", type=float, default=0.10,
@@ -124,7 +121,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-simulation", action="store_true",
                    help="skip the simulator calibration and replay")
     p.add_argument("--calibration", metavar="CAL.json",
-                   help="also write a calibration of the chosen extended model for EVERY "
+                   help="(default: none) also write a calibration FILE of the chosen "
+                   "extended model for EVERY "
                    "axis the runs share: --axis gets the diagnosis' effects, each other "
                    "axis its own selection (paper model where nothing is found); "
                    "coefficients refitted on the stored estimator's output")

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
+from gyrotherm.cli import _conventions as conv
 from gyrotherm.cli._common import (
     add_estimator_options,
     estimator_from_args,
@@ -44,9 +44,14 @@ def cmd_sim_chamber(args: argparse.Namespace) -> int:
     runs = chamber_runs(heating_min, seed=args.seed, rate_hz=args.rate_hz,
                         hold_s=args.hold_s, validation=args.validation,
                         progress=progress("simulating", quiet=args.quiet))
+    written = []
     for run in runs:
         path = write_run(run, out / f"{run.name}.csv")
-        print(f"wrote {path} ({len(run)} rows, {run.duration_s / 3600:.2f} h)")
+        written.append({"path": str(path), "rows": len(run), "duration_s": run.duration_s})
+        if not args.json:
+            print(f"wrote {path} ({len(run)} rows, {run.duration_s / 3600:.2f} h)")
+    if args.json:
+        conv.emit_json({"runs": written}, args.json)
     return 0
 
 
@@ -63,6 +68,9 @@ def _features(args: argparse.Namespace, est: EstimatorConfig) -> list[RunFeature
 def cmd_fit(args: argparse.Namespace) -> int:
     est = estimator_from_args(args)
     names = _effect_names(args)
+    conv.check_runs(args.runs, command="fit")
+    conv.output_path(args.out, option="--out")
+    conv.check_json_target(args.json)
     feats = _features(args, est)
     if names:
         return _fit_effects(args, est, feats, names)
@@ -70,19 +78,45 @@ def cmd_fit(args: argparse.Namespace) -> int:
     scaling = default_scaling(feats)
     per_run = fit_per_run(feats, args.model, estimator=est, scaling=scaling) if len(feats) > 1 \
         else []
-    for axis in cal.axes:
+    for axis in cal.axes if not args.json else ():
         rows = [(f.name, c) for f, c in zip(feats, per_run, strict=False)]
         rows.append((f"{args.method}", cal))
         print(coefficient_table(rows, axis))
         print()
     cal.save(args.out)
-    print(f"wrote {args.out} (model {args.model}, method {args.method}, axes {','.join(cal.axes)})")
+    if not args.json:
+        print(f"wrote {args.out} (model {args.model}, method {args.method}, "
+              f"axes {','.join(cal.axes)})")
+    held = []
     if len(feats) > 1 and not args.no_validation:
         held = leave_one_out(feats, args.model, estimator=est, method=args.method,
                              progress=progress("leave-one-run-out", quiet=args.quiet))
-        print("\nLeave-one-run-out validation (each run scored by a fit without it):")
-        print(score_table([s for h in held for s in h.scores]))
+        if not args.json:
+            print("\nLeave-one-run-out validation (each run scored by a fit without it):")
+            print(score_table([s for h in held for s in h.scores]))
+    if args.json:
+        conv.emit_json({
+            "calibration": str(args.out), "model": args.model, "method": args.method,
+            "coefficients_physical": {a: cal.physical_coefficients(a) for a in cal.axes},
+            "per_run": {f.name: {a: c.physical_coefficients(a) for a in c.axes}
+                        for f, c in zip(feats, per_run, strict=False)},
+            "leave_one_run_out": [s.to_dict() for h in held for s in h.scores],
+        }, args.json)
+    if args.report:
+        _report(args, cal, feats, title=f"fit: {args.model}, {args.method}",
+                calibration_path=str(args.out))
     return 0
+
+
+def _report(args: argparse.Namespace, cal: Calibration, feats: list[RunFeatures], *,
+            title: str, calibration_path: str) -> None:
+    """``--report DIR``: per-axis figures and report.md (matplotlib, loaded here only)."""
+    from gyrotherm.cli._plots import write_fit_report
+
+    md = write_fit_report(cal, feats, conv.output_dir(args.report, option="--report"),
+                          title=title, calibration_path=calibration_path)
+    if not args.quiet:
+        print(f"wrote {md}", file=sys.stderr)
 
 
 def _effect_names(args: argparse.Namespace) -> tuple[str, ...]:
@@ -116,7 +150,7 @@ def _fit_effects(args: argparse.Namespace, est: EstimatorConfig, feats: list[Run
     result = fit_effects(feats, {a: names for a in common_axes(feats)}, estimator=est,
                          provenance={"effects_requested": list(names)})
     cal = result.calibration
-    for axis in cal.axes:
+    for axis in cal.axes if not args.json else ():
         print(f"axis {axis}: paper+{'+'.join(names)}: leave-one-run-out RMS (1-s blocks) "
               f"{result.baseline_heldout_rms_dps[axis]:.5g} (paper) → "
               f"{result.heldout_rms_dps[axis]:.5g} °/s")
@@ -124,12 +158,25 @@ def _fit_effects(args: argparse.Namespace, est: EstimatorConfig, feats: list[Run
             print(f"  {name}: " + ", ".join(f"{k} = {v:.6g}" if v is not None else f"{k} = -"
                                             for k, v in params.items()))
     cal.save(args.out)
-    print(f"wrote {args.out} (version {cal.version}, model paper+{'+'.join(names)}, "
-          f"axes {','.join(cal.axes)})")
+    if args.json:
+        conv.emit_json({"calibration": str(args.out), "version": cal.version,
+                        "effects": list(names),
+                        "heldout_rms_dps": dict(result.heldout_rms_dps),
+                        "baseline_heldout_rms_dps": dict(result.baseline_heldout_rms_dps),
+                        "effects_params": {a: cal.effects_of(a).to_params()
+                                           for a in cal.axes}}, args.json)
+    else:
+        print(f"wrote {args.out} (version {cal.version}, model paper+{'+'.join(names)}, "
+              f"axes {','.join(cal.axes)})")
+    if args.report:
+        _report(args, cal, feats, title=f"fit: paper+{'+'.join(names)}",
+                calibration_path=str(args.out))
     return 0
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
+    conv.check_calibration_first(args.calibration, args.runs, command="evaluate")
+    conv.check_json_target(args.json)
     cal = load_calibration(args.calibration)
     feats = _features(args, cal.estimator)
     scores = [s for f in feats for s in score(cal, f)]
@@ -137,17 +184,19 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     start = ("each run's first row (power-on: the effects' runtime state starts there, "
              "t_on = the run's time column)")
     if args.json:
-        json.dump({"calibration": str(args.calibration), "model": cal.model.name,
-                   "version": cal.version, "effects": effects,
-                   **({"effects_state_start": start} if cal.version > 1 else {}),
-                   "scores": [s.to_dict() for s in scores]}, sys.stdout, indent=2)
-        print()
+        conv.emit_json({"calibration": str(args.calibration), "model": cal.model.name,
+                        "version": cal.version, "effects": effects,
+                        **({"effects_state_start": start} if cal.version > 1 else {}),
+                        "scores": [s.to_dict() for s in scores]}, args.json)
     else:
         print(f"calibration {args.calibration}: model {cal.model.name}")
         if cal.version > 1:
             print("effects: " + "; ".join(f"{a}: {', '.join(e) or 'none'}"
                                           for a, e in effects.items()) + f"; from {start}")
         print(score_table(scores))
+    if args.report:
+        _report(args, cal, feats, title=f"evaluate: {args.calibration}",
+                calibration_path=str(args.calibration))
     return 0
 
 
@@ -186,9 +235,11 @@ def paper_tables(args: argparse.Namespace) -> tuple[Run, Calibration]:
     axis = args.axis
     rows = [(f"{m:g} min", c) for m, c in zip(PAPER_HEATING_MIN, per_run, strict=True)]
     rows += [("mean (eq. 12)", avg), ("pooled", pooled)]
-    print(coefficient_table(rows, axis, truth=dict(gyro.bias.coefficients[axis]),
-                            title=f"Table 1 — paper model per heating run, axis {axis} "
-                            "(bias °/s; T, ΔT °C; truth = the simulator's coefficients)"))
+    as_json = getattr(args, "json", None)
+    if not as_json:
+        print(coefficient_table(rows, axis, truth=dict(gyro.bias.coefficients[axis]),
+                                title=f"Table 1 — paper model per heating run, axis {axis} "
+                                "(bias °/s; T, ΔT °C; truth = the simulator's coefficients)"))
     columns = []
     for i in (0, 5, 6):
         t2 = fit([train[i]], "t2", estimator=est, scaling=scaling)
@@ -196,6 +247,15 @@ def paper_tables(args: argparse.Namespace) -> tuple[Run, Calibration]:
     columns.append(("t3 pooled", score(fit(train, "t3", estimator=est, scaling=scaling), vfeat)))
     columns.append(("paper (eq.12)", score(avg, vfeat)))
     columns.append(("paper pooled", score(pooled, vfeat)))
+    if as_json:
+        conv.emit_json({
+            "table1": {"axis": axis, "units": "bias °/s; T, ΔT °C",
+                       "rows": {name: c.physical_coefficients(axis) for name, c in rows},
+                       "truth": dict(gyro.bias.coefficients[axis])},
+            "table2": {"run": valid.name,
+                       "columns": {name: [s.to_dict() for s in sc] for name, sc in columns}},
+        }, as_json)
+        return valid, avg
     print()
     print(error_table(columns, title="Table 2 — validation run (60 min heating), "
                       "errors after compensation, mean over axes x, y, z"))
@@ -208,13 +268,15 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     ch = sim_sub.add_parser("chamber", help="simulate chamber heating runs into run files")
     ch.add_argument("--heating-min", type=float, nargs="+", default=None,
                     help="heating times, min (default: the paper's 5 10 20 30 40 50 60)")
-    ch.add_argument("--out", required=True, help="output directory for the run files")
+    ch.add_argument("--out", required=True, metavar="DIR",
+                    help="DIRECTORY for the run files, one per run (created with its parents)")
     ch.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     ch.add_argument("--rate-hz", type=float, default=10.0, help="sample rate, Hz (default 10)")
     ch.add_argument("--hold-s", type=float, default=3600.0,
                     help="hold before and after the ramp, s (default 3600)")
     ch.add_argument("--validation", action="store_true",
                     help="name runs valid-… and draw seeds apart from fitting runs")
+    conv.add_json_option(ch, what="the files written (path, rows, duration_s)")
     ch.set_defaults(func=cmd_sim_chamber)
     from gyrotherm.cli import _stream as _stream_cli
 
@@ -223,16 +285,23 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     f = sub.add_parser("fit", help="fit a bias model to run files and write a calibration")
     f.add_argument("runs", nargs="+", help="run files, delimited text, candump logs, flight logs "
                    "(see the input options)")
-    f.add_argument("--model", choices=sorted(MODELS), default="paper")
-    f.add_argument("--method", choices=METHODS, default="pooled")
-    f.add_argument("--out", required=True, help="calibration file to write (JSON)")
+    f.add_argument("--model", choices=sorted(MODELS), default="paper",
+                   help="bias model: paper (T, ΔT), t2/t3 (temperature-only polynomials)")
+    f.add_argument("--method", choices=METHODS, default="pooled",
+                   help="pooled least squares, or paper-average (eq. 12: mean of per-run fits)")
+    f.add_argument("--out", required=True, metavar="FILE",
+                   help="calibration FILE to write (JSON; parent directories created; "
+                   "never over a run file)")
     f.add_argument("--no-validation", action="store_true",
                    help="skip the leave-one-run-out validation")
     f.add_argument("--effects", metavar="A,B",
                    help="also fit these effects with the paper model (thermal_lag, "
                    "hysteresis, warmup, cubic, gradient_quadratic, drift), per axis, time "
                    "constants and hysteresis transition searched as 'diagnose' does "
-                   "(≥ 2 runs; writes a version-2 calibration)")
+                   "(≥ 2 runs; writes a version-2 calibration; default: none)")
+    conv.add_json_option(f, what="the coefficients and the leave-one-run-out scores")
+    f.add_argument("--report", metavar="DIR",
+                   help="also write per-axis figures and report.md to DIR (default: none)")
     add_estimator_options(f)
     add_input_options(f)
     f.set_defaults(func=cmd_fit)
@@ -241,13 +310,18 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     e.add_argument("calibration", help="calibration file (JSON)")
     e.add_argument("runs", nargs="+", help="run files, delimited text, candump logs, flight logs "
                    "(see the input options)")
-    e.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    conv.add_json_option(e, what="the scores")
+    e.add_argument("--report", metavar="DIR",
+                   help="also write per-axis figures and report.md to DIR (default: none)")
     add_input_options(e)
     e.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("paper", help="reproduce Tables 1 and 2 on simulated chamber runs")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--rate-hz", type=float, default=10.0)
-    p.add_argument("--axis", choices=("x", "y", "z"), default="x")
-    p.add_argument("--out", help="also write the simulated runs to this directory")
+    p.add_argument("--seed", type=int, default=1, help="random seed")
+    p.add_argument("--rate-hz", type=float, default=10.0, help="sample rate, Hz")
+    p.add_argument("--axis", choices=("x", "y", "z"), default="x", help="axis of Table 1")
+    p.add_argument("--out", metavar="DIR",
+                   help="also write the simulated runs to this DIRECTORY (created; "
+                   "default: not written)")
+    conv.add_json_option(p, what="Tables 1 and 2")
     p.set_defaults(func=cmd_paper)

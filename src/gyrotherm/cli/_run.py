@@ -10,8 +10,9 @@ import sys
 def cmd_run(args: argparse.Namespace) -> int:
     from gyrotherm.daemon import Daemon, load_config  # only `run` loads the daemon and zenoh
 
+    level = args.log_level or ("warning" if getattr(args, "quiet", False) else "info")
     logging.basicConfig(
-        level=getattr(logging, args.log_level.upper()),
+        level=getattr(logging, level.upper()),
         stream=sys.stderr,
         format="%(levelname)s %(name)s: %(message)s",  # the journal adds the time
     )
@@ -28,5 +29,6 @@ def cmd_run(args: argparse.Namespace) -> int:
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("run", help="run the streaming daemon (CAN → compensation → Zenoh)")
     p.add_argument("--config", required=True, help="TOML config file (see docs/operations.md)")
-    p.add_argument("--log-level", default="info", choices=("debug", "info", "warning", "error"))
+    p.add_argument("--log-level", default=None, choices=("debug", "info", "warning", "error"),
+                   help="log level on stderr (default: info; with -q: warning)")
     p.set_defaults(func=cmd_run)

@@ -32,6 +32,7 @@ import sys
 import threading
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING
 
@@ -57,8 +58,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     src.add_argument("--chamber", type=float, metavar="HEATING_MIN",
                      help=f"simulate a chamber run heating over this many minutes "
                      f"(default {DEFAULT_HEATING_MIN:g})")
-    src.add_argument("--run", metavar="FILE", help="play a run file (CSV version 1)")
-    src.add_argument("--candump", metavar="FILE", help="replay a candump -l log")
+    src.add_argument("--run", metavar="FILE", help="play a run file (CSV version 1; default: none)")
+    src.add_argument("--candump", metavar="FILE", help="replay a candump -l log (default: none)")
     p.add_argument("--seed", type=int, default=0, help="--chamber: random seed (default 0)")
     p.add_argument("--rate-hz", type=float, default=10.0,
                    help="--chamber: sample rate, Hz (default 10)")
@@ -68,7 +69,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="temperature frame period, s (default: run metadata, else 0.1)")
     p.add_argument("--speed", type=float, default=1.0,
                    help="1 = real time, 10 = ten times faster, 0 or inf = as fast as possible")
-    p.add_argument("--max-frames", type=int, default=None, help="stop after N frames")
+    p.add_argument("--max-frames", type=int, default=None,
+                   help="stop after N frames (default: all)")
     p.add_argument("--interface", choices=INTERFACES, default="socketcand-server",
                    help="bus to play onto (default socketcand-server; socketcand = the same)")
     p.add_argument("--channel", default="vcan0", help="CAN channel (default vcan0)")
@@ -82,7 +84,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="socketcand-server: give up waiting after S s (default: never)")
     p.add_argument("--dbc", default=str(DEFAULT_DBC_PATH),
                    help="CAN database (default: the shipped gyro.dbc)")
-    p.add_argument("--write-candump", metavar="FILE", help="also write the frames to a candump log")
+    p.add_argument("--write-candump", metavar="FILE",
+                   help="also write the frames to a candump log FILE (default: none)")
 
 
 _Subparsers = argparse._SubParsersAction  # the type of ``add_subparsers()``'s result
@@ -204,6 +207,7 @@ def cmd_stream(args: argparse.Namespace) -> int:
     with _stop_on_signals(stop) as signals:
         try:
             if args.write_candump is not None:
+                Path(args.write_candump).parent.mkdir(parents=True, exist_ok=True)
                 sinks.append(CandumpSink(args.write_candump, channel=args.channel))
                 extra["candump"] = args.write_candump
             if _serves(args):

@@ -47,12 +47,16 @@ def _parser() -> argparse.ArgumentParser:
         help=f"zenoh endpoint to connect to, repeatable (default {DEFAULT_CONNECT[0]})",
     )  # fmt: skip
     p.add_argument("--zenoh-config", default=None, metavar="JSON5",
-                   help="zenoh config file used unchanged (replaces --connect)")  # fmt: skip
-    p.add_argument("--count", type=int, default=None, help="stop after N rate messages")
+                   help="zenoh config file used unchanged (replaces --connect; "
+                   "default: none)")
+    p.add_argument("--count", type=int, default=None,
+                   help="stop after N rate messages (default: run on)")
     p.add_argument("--timeout-s", type=float, default=None,
                    help="stop after S seconds (default: run on, but give up after "
                         f"{NOTHING_TIMEOUT_S:g} s when nothing at all arrived)")
-    p.add_argument("--max-hz", type=float, default=10.0, help="live lines per second (10)")
+    p.add_argument("--max-hz", type=float, default=10.0, help="live lines per second (default 10)")
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="no 'waiting for' line on stderr (also accepted before 'listen')")
     return p
 
 
@@ -155,9 +159,15 @@ def _run(
     return received
 
 
-def listen_main(argv: list[str] | None = None) -> int:
-    """Entry point of ``gyrotherm listen`` (argv without the program/sub-command name)."""
-    args = _parser().parse_args(argv)
+def listen_main(argv: list[str] | None = None, *, quiet: bool = False,
+                formatter_class: type[argparse.HelpFormatter] | None = None) -> int:
+    """Entry point of ``gyrotherm listen`` (argv without the program/sub-command name);
+    ``quiet``: ``-q`` given before the subcommand; ``formatter_class``: the help's."""
+    parser = _parser()
+    if formatter_class is not None:
+        parser.formatter_class = formatter_class
+    args = parser.parse_args(argv)
+    quiet = quiet or args.quiet
     if args.count is not None and args.count < 1:
         print(f"gyrotherm listen: --count = {args.count} is invalid: must be >= 1", file=sys.stderr)
         return 2
@@ -185,9 +195,10 @@ def listen_main(argv: list[str] | None = None) -> int:
     via = (f"with zenoh config {args.zenoh_config}" if args.zenoh_config is not None
            else "via " + ", ".join(connect))
     wait_s = NOTHING_TIMEOUT_S if args.timeout_s is None else args.timeout_s
-    print(f"gyrotherm listen: waiting for {base}/{{rate,state,health}} {via} "
-          f"(giving up after {wait_s:g} s without a message; --timeout-s)",
-          file=sys.stderr, flush=True)
+    if not quiet:
+        print(f"gyrotherm listen: waiting for {base}/{{rate,state,health}} {via} "
+              f"(giving up after {wait_s:g} s without a message; --timeout-s)",
+              file=sys.stderr, flush=True)
     try:
         with sub:
             try:
