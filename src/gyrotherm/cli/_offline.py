@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
+from gyrotherm._errors import ConfigError
+from gyrotherm.cli import _fitrest
 from gyrotherm.cli._common import (
     add_estimator_options,
     estimator_from_args,
@@ -51,8 +55,11 @@ def cmd_sim_chamber(args: argparse.Namespace) -> int:
 
 
 def _features(args: argparse.Namespace, est: EstimatorConfig) -> list[RunFeatures]:
-    runs = load_runs(args.runs, quiet=args.quiet)
-    report = progress("estimating T and ΔT", quiet=args.quiet)
+    return _features_of(load_runs(args.runs, quiet=args.quiet), est, quiet=args.quiet)
+
+
+def _features_of(runs: list[Run], est: EstimatorConfig, *, quiet: bool) -> list[RunFeatures]:
+    report = progress("estimating T and ΔT", quiet=quiet)
     out = []
     for i, run in enumerate(runs):
         out.append(features(run, est))
@@ -61,12 +68,35 @@ def _features(args: argparse.Namespace, est: EstimatorConfig) -> list[RunFeature
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
+    """Rest detection and one calibration per device: :mod:`gyrotherm.cli._fitrest`."""
     est = estimator_from_args(args)
     names = _effect_names(args)
-    feats = _features(args, est)
-    if names:
-        return _fit_effects(args, est, feats, names)
+    runs = load_runs(args.runs, quiet=args.quiet)
+    feats, reports = _fitrest.mask_motion(args, runs, _features_of(runs, est, quiet=args.quiet))
+    groups = _fitrest.device_groups(runs, feats)
+    to_stderr = args.json == "-"
+    with contextlib.redirect_stdout(sys.stderr) if to_stderr else contextlib.nullcontext():
+        _fitrest.print_rest_report(reports)
+        if names:
+            if len(groups) > 1 or any(f.rest is not None for f in feats):
+                raise ConfigError("--effects fits one device on rows at rest only: these runs "
+                                  "hold several devices or motion (use --rest all, or split)")
+            return _fit_effects(args, est, feats, names)
+        written = [_fit_device(args, est, group, device,
+                               _fitrest.calibration_path(args.out, device, len(groups)))
+                   for device, group in groups.items()]
+    _fitrest.write_json(args, reports, written)
+    return 0
+
+
+def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunFeatures],
+                device: str, out: Path) -> dict[str, object]:
+    """Fit, print and save the calibration of one device; what was written."""
+    if device:
+        print(f"device {device}: {len(feats)} runs")
     cal = fit(feats, args.model, estimator=est, method=args.method)
+    if device:
+        cal = replace(cal, provenance={**cal.provenance, "device_id": device})
     scaling = default_scaling(feats)
     per_run = fit_per_run(feats, args.model, estimator=est, scaling=scaling) if len(feats) > 1 \
         else []
@@ -75,14 +105,16 @@ def cmd_fit(args: argparse.Namespace) -> int:
         rows.append((f"{args.method}", cal))
         print(coefficient_table(rows, axis))
         print()
-    cal.save(args.out)
-    print(f"wrote {args.out} (model {args.model}, method {args.method}, axes {','.join(cal.axes)})")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    cal.save(out)
+    print(f"wrote {out} (model {args.model}, method {args.method}, axes {','.join(cal.axes)})")
     if len(feats) > 1 and not args.no_validation:
         held = leave_one_out(feats, args.model, estimator=est, method=args.method,
                              progress=progress("leave-one-run-out", quiet=args.quiet))
         print("\nLeave-one-run-out validation (each run scored by a fit without it):")
         print(score_table([s for h in held for s in h.scores]))
-    return 0
+    return {"device": device or None, "path": str(out), "model": args.model,
+            "method": args.method, "axes": list(cal.axes), "runs": [f.name for f in feats]}
 
 
 def _effect_names(args: argparse.Namespace) -> tuple[str, ...]:
@@ -224,7 +256,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     f.add_argument("runs", nargs="+", help="run files (CSV version 1) or candump logs")
     f.add_argument("--model", choices=sorted(MODELS), default="paper")
     f.add_argument("--method", choices=METHODS, default="pooled")
-    f.add_argument("--out", required=True, help="calibration file to write (JSON)")
+    f.add_argument("--out", required=True,
+                   help="calibration file to write (JSON); with several devices a directory "
+                   "(<device>.json) or a name with {device}")
     f.add_argument("--no-validation", action="store_true",
                    help="skip the leave-one-run-out validation")
     f.add_argument("--effects", metavar="A,B",
@@ -233,6 +267,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "constants and hysteresis transition searched as 'diagnose' does "
                    "(≥ 2 runs; writes a version-2 calibration)")
     add_estimator_options(f)
+    _fitrest.add_rest_options(f)
     f.set_defaults(func=cmd_fit)
 
     e = sub.add_parser("evaluate", help="score a calibration on run files (Table 2 style)")
