@@ -8,7 +8,7 @@ from collections.abc import Sequence
 
 from gyrotherm import __version__
 from gyrotherm._errors import GyrothermError
-from gyrotherm.cli import _demo, _diagnose, _offline, _run
+from gyrotherm.cli import _demo, _diagnose, _export, _offline, _run
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -23,6 +23,7 @@ def build_parser() -> argparse.ArgumentParser:
     _run.register(sub)
     _diagnose.register(sub)
     _demo.register(sub)
+    _export.register(sub)
     sub.add_parser("listen", help="live view of a sensor's Zenoh stream (see: listen --help)")
     return parser
 
