@@ -112,3 +112,17 @@ def test_bad_settings_and_too_short_runs_are_refused() -> None:
         RestConfig(min_rows=1)
     with pytest.raises(ConfigError, match="too few for rest detection"):
         detect_rest(np.arange(5.0), {"x": np.zeros(5)}, name="tiny")
+
+
+def test_a_long_constant_rate_turn_is_motion() -> None:
+    """A turntable at 5 °/s for 120 s, edges on block boundaries: no variance anywhere
+    and no offset against its own running median; the level change gives it away."""
+    rng = np.random.default_rng(3)
+    t = np.arange(0, 900, 0.1)
+    rates = {a: rng.standard_normal(len(t)) * 0.05 for a in "xyz"}
+    turn = (t >= 300) & (t < 420)
+    rates["z"][turn] += 5.0
+    report = detect_rest(t, rates)
+    (lo, hi), = _excluded_spans(report.rest, t)
+    assert 298.9 <= lo <= 300.0 and 419.9 <= hi <= 422.0  # ± one block and the guard
+    assert "rate offset" in report.segments[0].reasons

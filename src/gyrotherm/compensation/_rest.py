@@ -13,7 +13,10 @@ per rate axis a (°/s) and, when the run has one, the accelerometer (m/s²):
 * high-pass rate h_ab = ω̄_ab − median_{|b'−b| ≤ K} ω̄_ab', tested as |z|, the block mean minus a
   running median over ± ``baseline_s`` of rest blocks (a constant-rate turn has no
   variance but an offset; the slow thermal drift of the bias passes the median);
-* accelerometer magnitude variance  ln var_b(|a|), |a| = √(a_x² + a_y² + a_z²).
+* rate steps  s_ab = ω̄_ab − ω̄_a(b−1) (a level change, even on a block boundary);
+* accelerometer magnitude variance  ln var_b(|a|), |a| = √(a_x² + a_y² + a_z²);
+* rate level of whole rest stretches against their neighbours' (a constant-rate turn
+  longer than the running median has neither variance nor offset inside).
 
 Each feature f is scored against the gyro's own noise, robustly: z_b = (f_b − m)/s with
 m = median and s = 1.4826·MAD of f over the blocks judged at rest (two passes: all
@@ -159,6 +162,33 @@ def _spans(flags: BoolArray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
 
 
+def _level_changes(stats: Mapping[str, tuple[FloatArray, FloatArray]], at_rest: BoolArray,
+                   half: int, config: RestConfig) -> BoolArray:
+    """Rest stretches that are plateaus: a constant-rate turn longer than the running
+    median (no variance, no offset against its own median) between two rest stretches.
+
+    Across the gaps before and after a stretch, the level jumps j_in = (its first ≤ K
+    block means) − (the previous stretch's last K) and j_out = (the next stretch's first
+    K) − (its last K), medians, K = ``half``. A stretch is flagged when, on some axis,
+    both jumps exceed max(threshold·σ_step, ``min_rate_dps``) with opposite signs (up,
+    then back down). Thermal drift moves the level one way across both gaps and passes.
+    A turn at either end of the log has one neighbour only and is not judged here."""
+    spans = _spans(at_rest)
+    out = np.zeros(len(at_rest), dtype=bool)
+    for mean, _ in stats.values():
+        step = np.diff(mean[at_rest]) if at_rest.sum() > 2 else np.diff(mean)
+        tol = max(config.threshold * _MAD / np.sqrt(2.0) * float(np.median(np.abs(step))),
+                  config.min_rate_dps)
+        first = [float(np.median(mean[a:min(b, a + half)])) for a, b in spans]
+        last = [float(np.median(mean[max(a, b - half):b])) for a, b in spans]
+        for i in range(1, len(spans) - 1):
+            j_in, j_out = first[i] - last[i - 1], first[i + 1] - last[i]
+            if min(abs(j_in), abs(j_out)) > tol and j_in * j_out < 0:
+                a, b = spans[i]
+                out[a:b] = True
+    return out
+
+
 def detect_rest(
     time_s: FloatArray,
     rates_dps: Mapping[str, FloatArray],
@@ -197,10 +227,17 @@ def detect_rest(
             z_off = np.abs(_robust_z(high, at_rest, 1e-12))
             reasons["rate offset"] |= (z_off > config.threshold) & (
                 np.abs(high) > config.min_rate_dps)
+            step = np.diff(mean, prepend=mean[0])  # a level change between two blocks
+            z_step = np.abs(_robust_z(step, at_rest, 1e-12))
+            reasons["rate offset"] |= (z_step > config.threshold) & (
+                np.abs(step) > config.min_rate_dps)
         if acc_var is not None:
             reasons["accel variance"] = _robust_z(np.log(acc_var + 1e-30), at_rest,
                                                   0.05) > config.threshold
         at_rest = ~np.logical_or.reduce(list(reasons.values()))
+    level = _level_changes(stats, at_rest, half, config)
+    reasons["rate offset"] |= level
+    at_rest &= ~level
     motion = ~at_rest
     guard = round(config.guard_s / block_s)
     if guard and motion.any():
