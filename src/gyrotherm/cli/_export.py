@@ -38,8 +38,9 @@ from gyrotherm.compensation._rest import rest_of_run
 
 
 def provenance_runs(cal: Calibration, where: str) -> list[Run]:
-    """The calibration's fitting runs, re-read; CalibrationError when one is missing or
-    its content changed (sha256)."""
+    """The calibration's fitting runs, re-read (a relative path from the working directory,
+    else from the calibration's directory); CalibrationError when one is missing or its
+    content changed (sha256)."""
     entries = cal.provenance.get("runs")
     if not isinstance(entries, list) or not entries:
         raise CalibrationError(f"{where}: provenance lists no runs; give the runs: "
@@ -47,10 +48,12 @@ def provenance_runs(cal: Calibration, where: str) -> list[Run]:
     out = []
     for e in entries:
         source = str(e.get("source", ""))
-        if not Path(source).is_file():
+        beside = Path(where).parent / source  # a relative path: from the fit's directory
+        path = source if Path(source).is_file() else str(beside) if beside.is_file() else ""
+        if not path:
             raise CalibrationError(f"{where}: fitting run {source!r} is missing; give the "
                                    "runs on the command line")
-        run = load_run(source)
+        run = load_run(path)
         if run.sha256 != e.get("sha256"):
             raise CalibrationError(f"{where}: fitting run {source!r} changed since the fit "
                                    f"(sha256 {run.sha256[:12]}… ≠ {str(e.get('sha256'))[:12]}…)")
