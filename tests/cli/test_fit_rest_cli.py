@@ -113,3 +113,35 @@ def test_several_devices_into_one_json_file_is_refused(
     assert main(["-q", "fit", *every, "--out", str(tmp_path / "cal-{device}.json"),
                  "--no-validation", "--rest", "all"]) == 0
     assert (tmp_path / "cal-imu-a.json").exists() and (tmp_path / "cal-imu-b.json").exists()
+
+
+def test_export_of_a_device_fits_its_cubic_at_rest(
+    logs: dict[str, list[Path]], tmp_path: Path,
+) -> None:
+    runs = [str(p) for p in logs["imu-b"]]
+    cal = tmp_path / "cal-{device}.json"
+    assert main(["-q", "fit", *runs, "--out", str(cal), "--no-validation"]) == 0
+    docs = {}
+    for mode in ("auto", "all"):
+        doc = tmp_path / f"{mode}.json"
+        assert main(["-q", "export", str(tmp_path / "cal-imu-b.json"), "--rest", mode,
+                     "--ardupilot", str(tmp_path / f"{mode}.param"), "--json", str(doc)]) == 0
+        docs[mode] = json.loads(doc.read_text())
+    # each exported cubic, applied to the rows truly at rest (outside the turns ± 2 s)
+    rms = {}
+    for mode, doc in docs.items():
+        c = doc["cubic"]
+        resid = []
+        for p in logs["imu-b"]:
+            run = read_run(p)
+            still = np.ones(len(run), dtype=bool)
+            for a, b in TURNS_S:
+                still &= ~((run.time_s >= a - 2) & (run.time_s < b + 2))
+            u = np.clip(run.temperature_c, c["t_min_c"], c["t_max_c"]) - c["t_ref_c"]
+            cubic = np.polyval(c["coefficients_rad_s"]["x"][::-1], u)
+            resid.append((run.rates_dps["x"] - np.degrees(cubic))[still])
+        rms[mode] = float(np.sqrt(np.mean(np.concatenate(resid) ** 2)))
+    auto_x = docs["auto"]["validation"]["axes"]["x"]
+    assert rms["auto"] == pytest.approx(auto_x["cubic_rms_dps"], rel=0.05)
+    assert rms["auto"] < 0.5 * auto_x["raw_rms_dps"]
+    assert rms["all"] > 3 * rms["auto"]  # fitted through the turns: pulled off

@@ -54,6 +54,10 @@ def provenance_runs(cal: Calibration, where: str) -> list[Run]:
             raise CalibrationError(f"{where}: fitting run {source!r} is missing; give the "
                                    "runs on the command line")
         run = load_run(path)
+        device = cal.provenance.get("device_id")
+        if device is not None and run.metadata.get("device_id", device) != device:
+            raise CalibrationError(f"{where}: fitting run {source!r} is device "
+                                   f"{run.metadata['device_id']!r}, the calibration {device!r}")
         if run.sha256 != e.get("sha256"):
             raise CalibrationError(f"{where}: fitting run {source!r} changed since the fit "
                                    f"(sha256 {run.sha256[:12]}… ≠ {str(e.get('sha256'))[:12]}…)")
