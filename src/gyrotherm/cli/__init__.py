@@ -8,7 +8,7 @@ from collections.abc import Sequence
 
 from gyrotherm import __version__
 from gyrotherm._errors import GyrothermError
-from gyrotherm.cli import _conventions, _demo, _diagnose, _import, _offline, _run
+from gyrotherm.cli import _conventions, _demo, _diagnose, _export, _import, _offline, _run
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -24,6 +24,7 @@ def build_parser() -> argparse.ArgumentParser:
     _diagnose.register(sub)
     _demo.register(sub)
     _import.register(sub)
+    _export.register(sub)
     sub.add_parser("listen", help="live view of a sensor's Zenoh stream (see: listen --help)")
     return _conventions.apply(parser)  # defaults in every help, -q after the subcommand
 

@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
+from gyrotherm._errors import ConfigError
 from gyrotherm.cli import _conventions as conv
+from gyrotherm.cli import _fitrest
 from gyrotherm.cli._common import (
     add_estimator_options,
     estimator_from_args,
@@ -56,8 +61,11 @@ def cmd_sim_chamber(args: argparse.Namespace) -> int:
 
 
 def _features(args: argparse.Namespace, est: EstimatorConfig) -> list[RunFeatures]:
-    runs = load_inputs(args)
-    report = progress("estimating T and ΔT", quiet=args.quiet)
+    return _features_of(load_inputs(args), est, quiet=args.quiet)
+
+
+def _features_of(runs: list[Run], est: EstimatorConfig, *, quiet: bool) -> list[RunFeatures]:
+    report = progress("estimating T and ΔT", quiet=quiet)
     out = []
     for i, run in enumerate(runs):
         out.append(features(run, est))
@@ -66,15 +74,47 @@ def _features(args: argparse.Namespace, est: EstimatorConfig) -> list[RunFeature
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
+    """Rest detection and one calibration per device: :mod:`gyrotherm.cli._fitrest`."""
     est = estimator_from_args(args)
     names = _effect_names(args)
     conv.check_runs(args.runs, command="fit")
-    conv.output_path(args.out, option="--out")
     conv.check_json_target(args.json)
-    feats = _features(args, est)
+    runs = load_inputs(args)
+    feats, reports = _fitrest.mask_motion(args, runs, _features_of(runs, est, quiet=args.quiet))
+    groups = _fitrest.device_groups(runs, feats)
+    paths = {device: conv.output_path(_fitrest.calibration_path(args.out, device, len(groups)),
+                                      option="--out") for device in groups}
+    with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
+        _fitrest.print_rest_report(reports)
     if names:
+        if len(groups) > 1 or any(f.rest is not None for f in feats):
+            raise ConfigError("--effects fits one device on rows at rest only: these runs "
+                              "hold several devices or motion (use --rest all, or split)")
         return _fit_effects(args, est, feats, names)
+    written = [_fit_device(args, est, group, device, paths[device], several=len(groups) > 1)
+               for device, group in groups.items()]
+    if args.json:
+        conv.emit_json({"rest": {"mode": args.rest, "runs": [r.to_dict() for r in reports]},
+                        "calibrations": written,
+                        **({k: written[0][k] for k in _SINGLE_KEYS} if len(written) == 1 else {})},
+                       args.json)
+    return 0
+
+
+_SINGLE_KEYS = ("calibration", "model", "method", "coefficients_physical", "per_run",
+                "leave_one_run_out")
+"""With one device, ``--json`` also has its calibration's keys at the top level."""
+
+
+def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunFeatures],
+                device: str, out: Path, *, several: bool) -> dict[str, Any]:
+    """Fit, print (unless ``--json``) and save the calibration of one device, and its
+    report; what was written."""
+    if device and not args.json:
+        print(f"device {device}: {len(feats)} runs")
     cal = fit(feats, args.model, estimator=est, method=args.method)
+    if device:
+        cal = replace(cal, provenance={**cal.provenance, "device_id": device})
     scaling = default_scaling(feats)
     per_run = fit_per_run(feats, args.model, estimator=est, scaling=scaling) if len(feats) > 1 \
         else []
@@ -83,9 +123,9 @@ def cmd_fit(args: argparse.Namespace) -> int:
         rows.append((f"{args.method}", cal))
         print(coefficient_table(rows, axis))
         print()
-    cal.save(args.out)
+    cal.save(out)
     if not args.json:
-        print(f"wrote {args.out} (model {args.model}, method {args.method}, "
+        print(f"wrote {out} (model {args.model}, method {args.method}, "
               f"axes {','.join(cal.axes)})")
     held = []
     if len(feats) > 1 and not args.no_validation:
@@ -94,26 +134,27 @@ def cmd_fit(args: argparse.Namespace) -> int:
         if not args.json:
             print("\nLeave-one-run-out validation (each run scored by a fit without it):")
             print(score_table([s for h in held for s in h.scores]))
-    if args.json:
-        conv.emit_json({
-            "calibration": str(args.out), "model": args.model, "method": args.method,
+    if args.report:
+        report_dir = (Path(args.report) / _fitrest.safe_device_name(device) if several
+                      else args.report)
+        _report(args, cal, feats, title=f"fit: {args.model}, {args.method}",
+                calibration_path=str(out), report_dir=str(report_dir))
+    return {"device": device or None, "calibration": str(out), "path": str(out),
+            "model": args.model, "method": args.method, "axes": list(cal.axes),
+            "runs": [f.name for f in feats],
             "coefficients_physical": {a: cal.physical_coefficients(a) for a in cal.axes},
             "per_run": {f.name: {a: c.physical_coefficients(a) for a in c.axes}
                         for f, c in zip(feats, per_run, strict=False)},
-            "leave_one_run_out": [s.to_dict() for h in held for s in h.scores],
-        }, args.json)
-    if args.report:
-        _report(args, cal, feats, title=f"fit: {args.model}, {args.method}",
-                calibration_path=str(args.out))
-    return 0
+            "leave_one_run_out": [s.to_dict() for h in held for s in h.scores]}
 
 
 def _report(args: argparse.Namespace, cal: Calibration, feats: list[RunFeatures], *,
-            title: str, calibration_path: str) -> None:
+            title: str, calibration_path: str, report_dir: str | None = None) -> None:
     """``--report DIR``: per-axis figures and report.md (matplotlib, loaded here only)."""
     from gyrotherm.cli._plots import write_fit_report
 
-    md = write_fit_report(cal, feats, conv.output_dir(args.report, option="--report"),
+    md = write_fit_report(cal, feats,
+                          conv.output_dir(report_dir or args.report, option="--report"),
                           title=title, calibration_path=calibration_path)
     if not args.quiet:
         print(f"wrote {md}", file=sys.stderr)
@@ -299,11 +340,13 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "hysteresis, warmup, cubic, gradient_quadratic, drift), per axis, time "
                    "constants and hysteresis transition searched as 'diagnose' does "
                    "(≥ 2 runs; writes a version-2 calibration; default: none)")
-    conv.add_json_option(f, what="the coefficients and the leave-one-run-out scores")
+    conv.add_json_option(f, what="the rest report, the calibrations written, their "
+                         "coefficients and leave-one-run-out scores")
     f.add_argument("--report", metavar="DIR",
                    help="also write per-axis figures and report.md to DIR (default: none)")
     add_estimator_options(f)
     add_input_options(f)
+    _fitrest.add_rest_options(f)
     f.set_defaults(func=cmd_fit)
 
     e = sub.add_parser("evaluate", help="score a calibration on run files (Table 2 style)")

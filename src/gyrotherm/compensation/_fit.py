@@ -11,6 +11,11 @@ number). Methods:
   coefficient vectors (Table 1 → eq. 12 is exactly that column mean). With a
   common scaling the mean of centred coefficients equals the mean of the
   physical ones, since the map between them is linear.
+
+Rows at rest only (logs with motion): a run's ``rest`` mask (from
+:func:`gyrotherm.compensation._rest.detect_rest`) keeps T and ΔT estimated over the
+whole run but drops the masked rows from the least squares, the ranges, the scaling
+and the scores: min Σ_{i: rest_i} (A_i c − y_i)². Without a mask every row counts.
 """
 
 from __future__ import annotations
@@ -18,7 +23,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Literal
+from typing import Literal, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,6 +37,7 @@ from gyrotherm.compensation._models import ModelSpec, Scaling, get_model
 from gyrotherm.estimators import EstimatorConfig, estimate_series
 
 FloatArray = NDArray[np.float64]
+_G = TypeVar("_G", bound=np.generic)
 Method = Literal["pooled", "paper-average"]
 METHODS: tuple[Method, ...] = ("pooled", "paper-average")
 
@@ -48,10 +54,16 @@ class RunFeatures:
     delta_t_c: FloatArray
     rates_dps: Mapping[str, FloatArray]
     true_bias_dps: Mapping[str, FloatArray] = field(default_factory=dict)
+    rest: NDArray[np.bool_] | None = None
+    """Rows that feed the fit and the scores (True = at rest); None = every row."""
 
     @property
     def axes(self) -> tuple[str, ...]:
         return tuple(self.rates_dps)
+
+    def rows(self, values: NDArray[_G]) -> NDArray[_G]:
+        """``values`` (one per row) restricted to the rest rows."""
+        return values if self.rest is None else values[self.rest]
 
 
 def features(run: Run, estimator: EstimatorConfig) -> RunFeatures:
@@ -90,9 +102,9 @@ def common_axes(runs: Sequence[RunFeatures]) -> tuple[str, ...]:
 
 
 def _solve(spec: ModelSpec, scaling: Scaling, runs: Sequence[RunFeatures], axis: str) -> FloatArray:
-    t = np.concatenate([r.temperature_c for r in runs])
-    d = np.concatenate([r.delta_t_c for r in runs])
-    y = np.concatenate([r.rates_dps[axis] for r in runs])
+    t = np.concatenate([r.rows(r.temperature_c) for r in runs])
+    d = np.concatenate([r.rows(r.delta_t_c) for r in runs])
+    y = np.concatenate([r.rows(r.rates_dps[axis]) for r in runs])
     a = spec.design(*scaling.centre(t, d))
     if len(y) < 2 * a.shape[1]:
         raise CalibrationError(
@@ -119,15 +131,15 @@ def mean_coefficients(per_run: Sequence[FloatArray]) -> FloatArray:
 
 
 def _range(runs: Sequence[RunFeatures]) -> ValidRange:
-    t = np.concatenate([r.temperature_c for r in runs])
-    d = np.concatenate([r.delta_t_c for r in runs])
+    t = np.concatenate([r.rows(r.temperature_c) for r in runs])
+    d = np.concatenate([r.rows(r.delta_t_c) for r in runs])
     return ValidRange(float(t.min()), float(t.max()), float(d.min()), float(d.max()))
 
 
 def default_scaling(runs: Sequence[RunFeatures]) -> Scaling:
     return Scaling.from_data(
-        np.concatenate([r.temperature_c for r in runs]),
-        np.concatenate([r.delta_t_c for r in runs]),
+        np.concatenate([r.rows(r.temperature_c) for r in runs]),
+        np.concatenate([r.rows(r.delta_t_c) for r in runs]),
     )
 
 
@@ -161,7 +173,9 @@ def fit(
         provenance={
             "method": method,
             "runs": [{"name": r.name, "source": r.source, "sha256": r.sha256,
-                      "rows": len(r.time_s)} for r in runs],
+                      "rows": len(r.time_s),
+                      **({} if r.rest is None else {"rest_rows": int(np.sum(r.rest))})}
+                     for r in runs],
             "fit_time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
             "gyrotherm_version": __version__,
         },
@@ -187,15 +201,18 @@ def score(calibration: Calibration, run: RunFeatures) -> list[RunScore]:
     """Raw and compensated error metrics of ``run`` under ``calibration``, per axis.
 
     Effects (version 2) are evaluated online from the run's first row (their
-    runtime state starts at power-on there; t_on = the run's time column)."""
+    runtime state starts at power-on there; t_on = the run's time column). With a
+    ``rest`` mask only the rest rows are scored (the bias is evaluated on every row)."""
     out = []
     for axis in calibration.axes:
         if axis not in run.rates_dps:
             continue
         bias, clamped = calibration.bias_series(axis, run.temperature_c, run.delta_t_c,
                                                 run.time_s)
-        raw = run.rates_dps[axis]
+        bias, clamped = run.rows(bias), run.rows(clamped)
+        raw = run.rows(run.rates_dps[axis])
         truth = run.true_bias_dps.get(axis)
+        truth = None if truth is None else run.rows(truth)
         out.append(RunScore(
             run=run.name,
             axis=axis,

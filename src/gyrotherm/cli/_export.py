@@ -1,0 +1,197 @@
+"""``gyrotherm export CAL --px4 FILE --ardupilot FILE``: the autopilots' own parameters.
+
+The calibration's model (T and ΔT from the estimator) cannot be loaded into PX4 or
+ArduPilot: both evaluate a cubic in the raw temperature reading only
+(:mod:`gyrotherm.compensation._autopilot`). Export therefore *refits* their form on the
+same data: the runs listed in the calibration's provenance (re-read, each checked
+against its sha256; or RUNS given on the command line), rows at rest (``--rest auto``),
+pooled least squares of the rate on (T − T_ref)^k, k = 0..3, T = the sensor's reading.
+It then prints, per axis, the error left on the validation runs (``--validate RUNS``;
+without it the fitting runs, flagged in-sample) by the calibration's model and by the
+cubic, in °/s: what the ΔT-free form costs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gyrotherm._errors import CalibrationError, ConfigError
+from gyrotherm.cli._common import load_run, load_runs
+from gyrotherm.codecs import Run
+from gyrotherm.compensation import ErrorMetrics, features, load_calibration
+from gyrotherm.compensation._autopilot import (
+    CubicT,
+    ardupilot_params,
+    ardupilot_params_file,
+    fit_cubic_t,
+    px4_params,
+    px4_params_file,
+)
+from gyrotherm.compensation._calibration import Calibration
+from gyrotherm.compensation._rest import rest_of_run
+
+
+def provenance_runs(cal: Calibration, where: str) -> list[Run]:
+    """The calibration's fitting runs, re-read (a relative path from the working directory,
+    else from the calibration's directory); CalibrationError when one is missing or its
+    content changed (sha256)."""
+    entries = cal.provenance.get("runs")
+    if not isinstance(entries, list) or not entries:
+        raise CalibrationError(f"{where}: provenance lists no runs; give the runs: "
+                               "gyrotherm export CAL RUNS...")
+    out = []
+    for e in entries:
+        source = str(e.get("source", ""))
+        beside = Path(where).parent / source  # a relative path: from the fit's directory
+        path = source if Path(source).is_file() else str(beside) if beside.is_file() else ""
+        if not path:
+            raise CalibrationError(f"{where}: fitting run {source!r} is missing; give the "
+                                   "runs on the command line")
+        run = load_run(path)
+        device = cal.provenance.get("device_id")
+        if device is not None and run.metadata.get("device_id", device) != device:
+            raise CalibrationError(f"{where}: fitting run {source!r} is device "
+                                   f"{run.metadata['device_id']!r}, the calibration {device!r}")
+        if run.sha256 != e.get("sha256"):
+            raise CalibrationError(f"{where}: fitting run {source!r} changed since the fit "
+                                   f"(sha256 {run.sha256[:12]}… ≠ {str(e.get('sha256'))[:12]}…)")
+        out.append(run)
+    return out
+
+
+def _rest_rows(run: Run, mode: str) -> np.ndarray:
+    return np.ones(len(run), dtype=bool) if mode == "all" else rest_of_run(run).rest
+
+
+def fit_cubic(runs: list[Run], mode: str) -> CubicT:
+    masks = [_rest_rows(r, mode) for r in runs]
+    return fit_cubic_t([r.temperature_c[m] for r, m in zip(runs, masks, strict=True)],
+                       [{a: v[m] for a, v in r.rates_dps.items()}
+                        for r, m in zip(runs, masks, strict=True)])
+
+
+def validation_errors(cal: Calibration, cubic: CubicT, runs: list[Run],
+                      mode: str) -> dict[str, dict[str, float]]:
+    """Per axis, pooled over ``runs`` (rest rows): raw, model and cubic errors, °/s."""
+    res: dict[str, dict[str, list[np.ndarray]]] = {}
+    for run in runs:
+        keep = _rest_rows(run, mode)
+        feats = features(run, cal.estimator)
+        for axis in cal.axes:
+            if axis not in run.rates_dps or axis not in cubic.coefficients_rad_s:
+                continue
+            raw = run.rates_dps[axis]
+            ours, _ = cal.bias_series(axis, feats.temperature_c, feats.delta_t_c, run.time_s)
+            theirs = cubic.bias_dps(axis, run.temperature_c)
+            d = res.setdefault(axis, {"raw": [], "model": [], "cubic": []})
+            d["raw"].append(raw[keep])
+            d["model"].append((raw - ours)[keep])
+            d["cubic"].append((raw - theirs)[keep])
+    out = {}
+    for axis, d in res.items():
+        m = {k: ErrorMetrics.of(np.concatenate(v)) for k, v in d.items()}
+        out[axis] = {f"{k}_{s}_dps": getattr(e, f"{s}_dps") for k, e in m.items()
+                     for s in ("rms", "max_abs")}
+    return out
+
+
+def _device_id(args: argparse.Namespace, cal: Calibration) -> int:
+    text = args.device_id if args.device_id is not None else cal.provenance.get("device_id")
+    try:
+        return int(str(text), 0)
+    except ValueError:
+        raise ConfigError(f"--px4 needs the gyro's integer device id (PX4's sensor_gyro "
+                          f"device_id, TC_G<i>_ID); the calibration has {text!r}: give "
+                          "--device-id N") from None
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    if not (args.px4 or args.ardupilot):
+        raise ConfigError("export: nothing to write; give --px4 FILE and/or --ardupilot FILE")
+    cal = load_calibration(args.calibration)
+    where = str(args.calibration)
+    device = _device_id(args, cal) if args.px4 else 0
+    fit_runs = load_runs(args.runs, quiet=args.quiet) if args.runs \
+        else provenance_runs(cal, where)
+    cubic = fit_cubic(fit_runs, args.rest)
+    in_sample = not args.validate
+    valid = fit_runs if in_sample else load_runs(args.validate, quiet=args.quiet)
+    errors = validation_errors(cal, cubic, valid, args.rest)
+    written: dict[str, Any] = {}
+    if args.px4:
+        params = px4_params(cubic, instance=args.instance, device_id=device)
+        _write(args.px4, px4_params_file(params))
+        written["px4"] = {"file": args.px4, "params": {n: v for n, v, _ in params}}
+    if args.ardupilot:
+        ap = ardupilot_params(cubic, imu=args.instance + 1)
+        _write(args.ardupilot, ardupilot_params_file(ap))
+        written["ardupilot"] = {"file": args.ardupilot, "params": dict(ap)}
+    doc = {"calibration": where, "model": cal.model.name,
+           "cubic": {"t_ref_c": cubic.t_ref_c, "t_min_c": cubic.t_min_c,
+                     "t_max_c": cubic.t_max_c,
+                     "coefficients_rad_s": {a: list(c) for a, c in
+                                            cubic.coefficients_rad_s.items()}},
+           "fit_runs": [r.source for r in fit_runs],
+           "validation": {"runs": [r.source for r in valid], "in_sample": in_sample,
+                          "rest": args.rest, "axes": errors}, **written}
+    if args.json is not None:
+        text = json.dumps(doc, indent=2) + "\n"
+        if args.json == "-":
+            sys.stdout.write(text)
+            return 0
+        _write(args.json, text)
+    _print_table(doc, cal)
+    return 0
+
+
+def _write(path: str, text: str) -> None:
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(text, encoding="utf-8")
+
+
+def _print_table(doc: dict[str, Any], cal: Calibration) -> None:
+    v = doc["validation"]
+    c = doc["cubic"]
+    print(f"cubic in T (PX4/ArduPilot form): T_ref {c['t_ref_c']:.3f} °C, range "
+          f"[{c['t_min_c']:.3f}, {c['t_max_c']:.3f}] °C, fitted on {len(doc['fit_runs'])} runs")
+    for key in ("px4", "ardupilot"):
+        if key in doc:
+            print(f"wrote {doc[key]['file']} ({len(doc[key]['params'])} parameters)")
+    label = "fitting runs, in-sample" if v["in_sample"] else "validation runs"
+    print(f"\nError after compensation on {len(v['runs'])} {label} (rows: {v['rest']}), °/s:")
+    print(f"{'axis':<5} {'raw RMS':>10} {cal.model.name + ' RMS':>12} {'cubic RMS':>10} "
+          f"{'cost':>9} {cal.model.name + ' max':>12} {'cubic max':>10}")
+    for axis, e in v["axes"].items():
+        print(f"{axis:<5} {e['raw_rms_dps']:10.5f} {e['model_rms_dps']:12.5f} "
+              f"{e['cubic_rms_dps']:10.5f} {e['cubic_rms_dps'] - e['model_rms_dps']:+9.5f} "
+              f"{e['model_max_abs_dps']:12.5f} {e['cubic_max_abs_dps']:10.5f}")
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    e = sub.add_parser("export", help="write PX4 / ArduPilot thermal parameters (a cubic in T "
+                       "refitted on the calibration's runs) and what the ΔT-free form costs")
+    e.add_argument("calibration", help="calibration file (JSON) written by 'gyrotherm fit'")
+    e.add_argument("runs", nargs="*", help="fitting runs (default: the calibration's "
+                   "provenance runs, checked against their sha256)")
+    e.add_argument("--px4", metavar="FILE", help="write a QGroundControl .params file")
+    e.add_argument("--ardupilot", metavar="FILE", help="write a Mission Planner/MAVProxy "
+                   ".param file")
+    e.add_argument("--instance", type=int, default=0,
+                   help="gyro instance: TC_G<i> (PX4), INS_TCAL<i+1> (ArduPilot) (default 0)")
+    e.add_argument("--device-id", help="PX4 device id of the gyro, TC_G<i>_ID (default: "
+                   "the calibration's provenance device_id when it is an integer)")
+    e.add_argument("--validate", nargs="+", metavar="RUN", help="runs to score both forms "
+                   "on (default: the fitting runs, in-sample)")
+    e.add_argument("--rest", choices=("auto", "all"), default="auto",
+                   help="rows used: auto = detected at rest, all = every row (default auto)")
+    e.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",
+                   help="write the parameters and errors as JSON to FILE (stdout when no FILE, "
+                   "instead of the table)")
+    e.set_defaults(func=cmd_export)

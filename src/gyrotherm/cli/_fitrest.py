@@ -1,0 +1,99 @@
+"""``gyrotherm fit``: rest detection (``--rest auto|all``), one calibration per device.
+
+* ``--rest auto`` (default) runs :func:`gyrotherm.compensation._rest.rest_of_run` on
+  every run and masks the motion rows out of the fit; a run found entirely at rest
+  gets no mask, so chamber runs fit exactly as with ``--rest all``.
+* Runs whose metadata ``device_id`` differ (several IMUs in one log, as the readers
+  write them) are fitted separately. ``--out`` names the files: a ``{device}`` in it
+  is replaced by the device id (characters outside ``A-Za-z0-9._-`` become ``_``);
+  without it, several devices make ``--out`` a directory holding ``<device>.json``.
+  A single device keeps ``--out`` as the file to write.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from gyrotherm._errors import ConfigError
+from gyrotherm.codecs import Run
+from gyrotherm.compensation import RunFeatures
+from gyrotherm.compensation._rest import RestConfig, RestReport, rest_of_run
+
+DEVICE_KEY = "device_id"
+PLACEHOLDER = "{device}"
+
+
+def add_rest_options(parser: argparse.ArgumentParser) -> None:
+    d = RestConfig()
+    g = parser.add_argument_group("rest detection (logs with motion)")
+    g.add_argument("--rest", choices=("auto", "all"), default="auto",
+                   help="auto: fit only rows detected at rest (rate variance, high-pass "
+                   "rate, accelerometer); all: every row (default auto)")
+    g.add_argument("--rest-threshold", type=float, default=d.threshold,
+                   help=f"robust z-score above which a window is motion (default {d.threshold:g})")
+    g.add_argument("--rest-window-s", type=float, default=d.window_s,
+                   help=f"window length, s (default {d.window_s:g})")
+    g.add_argument("--rest-min-segment-s", type=float, default=d.min_segment_s,
+                   help=f"shortest rest stretch kept, s (default {d.min_segment_s:g})")
+
+
+def rest_config(args: argparse.Namespace) -> RestConfig:
+    return RestConfig(window_s=args.rest_window_s, threshold=args.rest_threshold,
+                      min_segment_s=args.rest_min_segment_s)
+
+
+def mask_motion(args: argparse.Namespace, runs: Sequence[Run],
+                feats: Sequence[RunFeatures]) -> tuple[list[RunFeatures], list[RestReport]]:
+    """Features with the motion rows masked (``--rest auto``) and the reports."""
+    if args.rest == "all":
+        return list(feats), []
+    config = rest_config(args)
+    reports = [rest_of_run(r, config) for r in runs]
+    out = [f if rep.rest.all() else replace(f, rest=rep.rest)
+           for f, rep in zip(feats, reports, strict=True)]
+    return out, reports
+
+
+def print_rest_report(reports: Sequence[RestReport], *, file: Any = None) -> None:
+    if not reports:
+        return
+    print("Rest detection (rows excluded from the fit):", file=file)
+    for rep in reports:
+        print(f"  {rep.run}: {len(rep.segments)} segments, {rep.excluded_s:.1f} of "
+              f"{rep.total_s:.1f} s ({100 * rep.excluded_fraction:.2f} %)", file=file)
+        for s in rep.segments:
+            print(f"    {s.start_s:10.2f} – {s.end_s:10.2f} s: {', '.join(s.reasons)}",
+                  file=file)
+    print(file=file)
+
+
+def device_groups(runs: Sequence[Run],
+                  feats: Sequence[RunFeatures]) -> dict[str, list[RunFeatures]]:
+    """Features grouped by the runs' metadata ``device_id`` ("" when absent), in order."""
+    groups: dict[str, list[RunFeatures]] = {}
+    for run, f in zip(runs, feats, strict=True):
+        groups.setdefault(run.metadata.get(DEVICE_KEY, ""), []).append(f)
+    return groups
+
+
+def safe_device_name(device: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]", "_", device) or "device"
+
+
+def calibration_path(out: str, device: str, n_devices: int) -> Path:
+    """Where the calibration of ``device`` goes (module docstring)."""
+    if PLACEHOLDER in out:
+        return Path(out.replace(PLACEHOLDER, safe_device_name(device)))
+    if n_devices == 1:
+        return Path(out)
+    if out.endswith(".json"):
+        raise ConfigError(f"--out {out!r}: the runs hold {n_devices} devices; give a "
+                          f"directory or a name with {PLACEHOLDER} (e.g. cal-{PLACEHOLDER}.json)")
+    return Path(out) / f"{safe_device_name(device)}.json"
+
+

@@ -1,0 +1,150 @@
+"""``gyrotherm fit --rest`` and several devices in one set of runs, end to end."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gyrotherm.cli import main
+from gyrotherm.codecs import Run, read_run, write_run
+from gyrotherm.compensation import features, load_calibration, score
+from gyrotherm.sim import BiasTruth, GyroParams, chamber_runs
+from motionkit import with_rotations
+
+TURNS_S = ((700.0, 730.0), (1400.0, 1460.0))
+#: Device b's true bias: device a's (the simulator default) with other coefficients.
+TRUTH_B = {
+    "x": {"T^2": -6.0e-5, "T": 0.012, "dT": -0.040, "T*dT": 2.0e-4, "1": -0.15},
+    "y": {"T^2": 9.0e-5, "T": -0.008, "dT": 0.025, "T*dT": -3.0e-4, "1": 0.25},
+    "z": {"T^2": -4.0e-5, "T": 0.005, "dT": 0.020, "T*dT": 1.0e-4, "1": -0.05},
+}
+
+
+def _device_runs(device: str, gyro: GyroParams, seed: int) -> list[Run]:
+    runs = chamber_runs([10, 40], seed=seed, rate_hz=5.0, hold_s=1200.0, gyro=gyro)
+    return [replace(with_rotations(r, TURNS_S, accel=True, seed=seed + i),
+                    name=f"{device}-{r.name}", metadata={**r.metadata, "device_id": device})
+            for i, r in enumerate(runs)]
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, list[Path]]:
+    out = tmp_path_factory.mktemp("logs")
+    gyros = {"imu-a": GyroParams(), "imu-b": GyroParams(bias=BiasTruth(coefficients=TRUTH_B))}
+    return {dev: [write_run(r, out / f"{r.name}.csv") for r in _device_runs(dev, g, 10 * k)]
+            for k, (dev, g) in enumerate(gyros.items())}
+
+
+def _truth_rms(cal_path: Path, runs: list[Path]) -> float:
+    """Mean RMS of (fitted − true) bias over axes and rows at rest of ``runs``."""
+    cal = load_calibration(cal_path)
+    vals = []
+    for p in runs:
+        run = read_run(p)
+        still = np.ones(len(run), dtype=bool)
+        for a, b in TURNS_S:
+            still &= ~((run.time_s >= a - 2) & (run.time_s < b + 2))
+        f = replace(features(run, cal.estimator), rest=still)
+        vals += [s.truth.rms_dps for s in score(cal, f) if s.truth is not None]
+    return float(np.mean(vals))
+
+
+def test_two_devices_two_calibrations_each_its_own_truth(
+    logs: dict[str, list[Path]], tmp_path: Path, capsys: pytest.CaptureFixture[str],
+) -> None:
+    every = [str(p) for paths in logs.values() for p in paths]
+    report = tmp_path / "report.json"
+    out = tmp_path / "cals"
+    assert main(["-q", "fit", *every, "--out", str(out), "--no-validation",
+                 "--json", str(report)]) == 0
+    printed = capsys.readouterr()
+    assert printed.out == ""  # --json replaces the tables; the rest report goes to stderr
+    assert "Rest detection" in printed.err
+    doc = json.loads(report.read_text())
+    assert [(c["device"], len(c["runs"])) for c in doc["calibrations"]] == [("imu-a", 2),
+                                                                            ("imu-b", 2)]
+    assert [c["path"] for c in doc["calibrations"]] == [str(out / "imu-a.json"),
+                                                        str(out / "imu-b.json")]
+    for run in doc["rest"]["runs"]:
+        assert len(run["segments"]) == len(TURNS_S)
+        assert 90.0 < run["excluded_s"] < 90.0 + 4 * len(TURNS_S) * 2.2
+    for dev in logs:
+        cal = json.loads((out / f"{dev}.json").read_text())
+        assert cal["provenance"]["device_id"] == dev
+        assert all(r["rest_rows"] < r["rows"] for r in cal["provenance"]["runs"])
+    own_a, own_b = _truth_rms(out / "imu-a.json", logs["imu-a"]), \
+        _truth_rms(out / "imu-b.json", logs["imu-b"])
+    cross = _truth_rms(out / "imu-a.json", logs["imu-b"])
+    assert own_a < 0.02 and own_b < 0.02
+    assert cross > 10 * max(own_a, own_b)
+
+
+def test_motion_kept_biases_the_fit(logs: dict[str, list[Path]], tmp_path: Path) -> None:
+    runs = [str(p) for p in logs["imu-a"]]
+    for mode in ("auto", "all"):
+        assert main(["-q", "fit", *runs, "--out", str(tmp_path / f"{mode}.json"),
+                     "--no-validation", "--rest", mode]) == 0
+    masked = _truth_rms(tmp_path / "auto.json", logs["imu-a"])
+    kept = _truth_rms(tmp_path / "all.json", logs["imu-a"])
+    assert kept > 10 * masked
+
+
+def test_chamber_runs_fit_identically_with_and_without_detection(tmp_path: Path) -> None:
+    paths = [str(write_run(r, tmp_path / f"{r.name}.csv"))
+             for r in chamber_runs([5, 30], seed=4, rate_hz=2.0, hold_s=900.0)]
+    for mode in ("auto", "all"):
+        assert main(["-q", "fit", *paths, "--out", str(tmp_path / f"{mode}.json"),
+                     "--no-validation", "--rest", mode]) == 0
+    auto = json.loads((tmp_path / "auto.json").read_text())
+    every = json.loads((tmp_path / "all.json").read_text())
+    for key in ("coefficients", "scaling", "range"):
+        assert auto[key] == every[key]
+    assert "rest_rows" not in json.dumps(auto["provenance"]["runs"])
+
+
+def test_several_devices_into_one_json_file_is_refused(
+    logs: dict[str, list[Path]], tmp_path: Path, capsys: pytest.CaptureFixture[str],
+) -> None:
+    every = [str(p) for paths in logs.values() for p in paths]
+    assert main(["-q", "fit", *every, "--out", str(tmp_path / "cal.json"),
+                 "--no-validation"]) == 2
+    assert "give a directory or a name with {device}" in capsys.readouterr().err
+    assert main(["-q", "fit", *every, "--out", str(tmp_path / "cal-{device}.json"),
+                 "--no-validation", "--rest", "all"]) == 0
+    assert (tmp_path / "cal-imu-a.json").exists() and (tmp_path / "cal-imu-b.json").exists()
+
+
+def test_export_of_a_device_fits_its_cubic_at_rest(
+    logs: dict[str, list[Path]], tmp_path: Path,
+) -> None:
+    runs = [str(p) for p in logs["imu-b"]]
+    cal = tmp_path / "cal-{device}.json"
+    assert main(["-q", "fit", *runs, "--out", str(cal), "--no-validation"]) == 0
+    docs = {}
+    for mode in ("auto", "all"):
+        doc = tmp_path / f"{mode}.json"
+        assert main(["-q", "export", str(tmp_path / "cal-imu-b.json"), "--rest", mode,
+                     "--ardupilot", str(tmp_path / f"{mode}.param"), "--json", str(doc)]) == 0
+        docs[mode] = json.loads(doc.read_text())
+    # each exported cubic, applied to the rows truly at rest (outside the turns ± 2 s)
+    rms = {}
+    for mode, doc in docs.items():
+        c = doc["cubic"]
+        resid = []
+        for p in logs["imu-b"]:
+            run = read_run(p)
+            still = np.ones(len(run), dtype=bool)
+            for a, b in TURNS_S:
+                still &= ~((run.time_s >= a - 2) & (run.time_s < b + 2))
+            u = np.clip(run.temperature_c, c["t_min_c"], c["t_max_c"]) - c["t_ref_c"]
+            cubic = np.polyval(c["coefficients_rad_s"]["x"][::-1], u)
+            resid.append((run.rates_dps["x"] - np.degrees(cubic))[still])
+        rms[mode] = float(np.sqrt(np.mean(np.concatenate(resid) ** 2)))
+    auto_x = docs["auto"]["validation"]["axes"]["x"]
+    assert rms["auto"] == pytest.approx(auto_x["cubic_rms_dps"], rel=0.05)
+    assert rms["auto"] < 0.5 * auto_x["raw_rms_dps"]
+    assert rms["all"] > 3 * rms["auto"]  # fitted through the turns: pulled off
