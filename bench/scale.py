@@ -27,6 +27,7 @@ import itertools
 import json
 import math
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -66,7 +67,11 @@ def write_log(path: Path, n_rows: int, *, seed: int) -> None:
 
 
 def measure(argv: list[str]) -> dict[str, Any]:
-    """Run ``argv``; wall time and peak RSS of the child (``wait4`` rusage)."""
+    """Run ``argv``; wall time and peak RSS of the child (``wait4`` rusage).
+
+    Linux counts in a child's ``ru_maxrss`` the resident size it had before
+    ``exec`` (a copy of this process): the generator therefore runs in its own
+    child, so that this process stays at a few tens of MB."""
     start = time.perf_counter()
     proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _, status, usage = os.wait4(proc.pid, 0)
@@ -99,7 +104,13 @@ def main() -> int:
     ap.add_argument("--skip", nargs="*", default=[], choices=("fit1", "fit3", "diagnose"),
                     help="jobs to leave out")
     ap.add_argument("--out", help="also write the JSON here")
+    ap.add_argument("--generate", nargs=3, metavar=("ROWS", "SEED", "PATH"),
+                    help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.generate:
+        rows_text, seed_text, path_text = args.generate
+        write_log(Path(path_text), int(rows_text), seed=int(seed_text))
+        return 0
     tmp = None if args.keep_dir else tempfile.TemporaryDirectory(prefix="gyrotherm-scale-")
     work = Path(args.keep_dir or (tmp.name if tmp else "."))
     work.mkdir(parents=True, exist_ok=True)
@@ -109,8 +120,9 @@ def main() -> int:
         n = int(n_float)
         files = [work / f"scale-{n}-{s}.csv" for s in (1, 2, 3)]
         for s, p in zip((1, 2, 3), files, strict=True):
-            if not p.exists():
-                write_log(p, n, seed=s)
+            if not p.exists():  # in a child: this process stays small (see measure())
+                subprocess.run([sys.executable, __file__, "--generate", str(n), str(s), str(p)],
+                               check=True)
         row: dict[str, Any] = {"rows": n, "file_mb": round(files[0].stat().st_size / 1e6, 1)}
         jobs = {
             "fit1": [*exe, "fit", str(files[0]), "--no-validation", "--out", str(work / "c1.json")],
@@ -123,7 +135,8 @@ def main() -> int:
                 row[name] = measure(argv)
                 print(f"{n:>10} {name:<9} {row[name]}", file=sys.stderr, flush=True)
         rows.append(row)
-    result: dict[str, Any] = {"rows": rows}
+    own_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    result: dict[str, Any] = {"bench_process_peak_rss_mb": round(own_mb, 1), "rows": rows}
     for job in ("fit1", "fit3", "diagnose"):
         for key in ("elapsed_s", "peak_rss_mb"):
             pts = [(r["rows"], float(r[job][key])) for r in rows if job in r]
