@@ -137,21 +137,43 @@ def test_text_column_in_a_large_file_is_ignored(tmp_path: Path) -> None:
 
 
 def test_clean_file_takes_one_parsing_pass(monkeypatch: pytest.MonkeyPatch) -> None:
-    from gyrotherm.codecs import _runfile
+    from gyrotherm.codecs import _runbody as _runfile
 
+    chunks: list[int] = []
     calls: list[object] = []
-    real = _runfile._loadtxt
+    real_lines, real = _runfile._loadtxt_lines, _runfile._loadtxt
+
+    def counting_lines(lines: list[str], width: int) -> np.ndarray:
+        chunks.append(len(lines))
+        return real_lines(lines, width)
 
     def counting(text: str, usecols: list[int] | None = None) -> np.ndarray:
         calls.append(usecols)
         return real(text, usecols)
 
+    monkeypatch.setattr(_runfile, "_loadtxt_lines", counting_lines)
     monkeypatch.setattr(_runfile, "_loadtxt", counting)
     parse_run(HEADER + "".join(f"{i},{20 + i},0.{i}\n" for i in range(100)))
-    assert calls == [None]
-    calls.clear()
+    assert (chunks, calls) == ([100], [])  # one chunk, no slow path
+    chunks.clear()
     parse_run(NOTE_HEADER + "".join(f"{i},{20 + i},n{i},0.{i},{i}\n" for i in range(100)))
-    assert calls == [None, [0, 1, 3], [2], [4]]  # all; known; each unknown on its own
+    assert chunks == [100]  # the fast path fails on the text column, then:
+    assert calls == [[0, 1, 3], [2], [4]]  # known columns; each unknown on its own
+
+
+def test_reader_columns_are_not_copied_again() -> None:
+    """The reader's read-only columns are the run's arrays (no second copy of a large
+    log), and still cannot be written; a caller's writable array is copied."""
+    run = parse_run(HEADER + "0,20,0.1\n1,21,0.2\n")
+    with pytest.raises(ValueError):
+        run.rates_dps["x"][0] = 5.0
+    again = Run(name="r", time_s=run.time_s, temperature_c=run.temperature_c,
+                rates_dps=run.rates_dps)
+    assert again.time_s is run.time_s
+    mine = np.array([0.0, 1.0])
+    copied = Run(name="c", time_s=mine, temperature_c=mine, rates_dps={"x": mine})
+    mine[0] = 9.0
+    assert copied.time_s[0] == 0.0
 
 
 def test_missing_file_is_a_run_file_error(tmp_path: Path) -> None:
@@ -162,3 +184,34 @@ def test_missing_file_is_a_run_file_error(tmp_path: Path) -> None:
 def test_format_is_stable_text() -> None:
     run = parse_run(HEADER + "0,20,0.1\n0.5,20.25,-0.125\n")
     assert format_run(run) == HEADER + "0,20,0.1\n0.5,20.25,-0.125\n"
+
+
+@pytest.mark.parametrize("newline", ["\n", "\r\n", "\r"])
+@pytest.mark.parametrize("trailing", ["", "\n", "\n\n  \n"])
+def test_body_parsed_in_chunks_equals_small_parse(
+    monkeypatch: pytest.MonkeyPatch, newline: str, trailing: str
+) -> None:
+    """The body is handed to numpy in ~chunk-sized pieces split at line ends: with a
+    tiny chunk (every few lines, some lines longer than a chunk) every value and the
+    line numbers in errors are the same as with one piece."""
+    from gyrotherm.codecs import _runbody as _runfile
+
+    rng = np.random.default_rng(5)
+    rows = [f"{i * 0.1:.1f},{20 + rng.normal():.6f},{rng.normal():.9f}" for i in range(300)]
+    text = newline.join(["# gyrotherm-run: 1", "# name: chunks", "time_s,temperature_c,rate_x_dps",
+                         *rows]) + trailing
+    whole = parse_run(text)
+    monkeypatch.setattr(_runfile, "_CHUNK_CHARS", 7)
+    chunked = parse_run(text)
+    expected = np.array([[float(v) for v in r.split(",")] for r in rows])
+    for run in (whole, chunked):
+        assert len(run) == 300
+        np.testing.assert_array_equal(run.time_s, expected[:, 0])
+        np.testing.assert_array_equal(run.temperature_c, expected[:, 1])
+        np.testing.assert_array_equal(run.rates_dps["x"], expected[:, 2])
+    broken = text.replace(rows[150], rows[150].replace(",", ",x", 1), 1)
+    with pytest.raises(RunFileError, match=r"line 154: column 'temperature_c'"):
+        parse_run(broken)
+    gap = text.replace(rows[200], "", 1)
+    with pytest.raises(RunFileError, match=r"line 204: blank line inside the data"):
+        parse_run(gap)

@@ -124,3 +124,22 @@ def test_save_where_it_cannot_write_names_the_path(
         calibration.save(target)
     assert isinstance(info.value.__cause__, FileNotFoundError)
     assert not list(tmp_path.rglob("*.tmp"))  # nothing left behind
+
+
+def test_base_series_in_blocks_equals_base_bias(
+    calibration: Calibration, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """base_series evaluates a long log a block at a time: every row equals the
+    scalar base_bias (math.fsum of the terms), whatever the block size."""
+    from gyrotherm.compensation import _calibration
+
+    rng = np.random.default_rng(2)
+    t = rng.uniform(-20, 50, 1000)
+    d = rng.normal(0, 2, 1000)
+    whole = calibration.base_series("x", t, d)
+    monkeypatch.setattr(_calibration, "SERIES_BLOCK_ROWS", 7)
+    blocked = calibration.base_series("x", t, d)
+    np.testing.assert_array_equal(blocked, whole)
+    scalar = np.array([calibration.base_bias("x", float(a), float(b))
+                       for a, b in zip(t, d, strict=True)])
+    np.testing.assert_allclose(whole, scalar, rtol=1e-12, atol=1e-15)

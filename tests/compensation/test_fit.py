@@ -147,3 +147,37 @@ def test_outside_the_calibrated_range_is_clamped_and_flagged(
     bias, clamped = cal.bias_series("x", np.array([20.0, r.t_max_c + 1]), np.zeros(2))
     assert list(clamped) == [False, True]
     assert bias[0] == pytest.approx(inside.bias_dps["x"])
+
+
+@pytest.mark.parametrize("block_rows", [7, 1 << 16])
+def test_blockwise_solve_equals_lstsq(monkeypatch: pytest.MonkeyPatch, block_rows: int) -> None:
+    """The blockwise QR least squares (bounded memory on long logs) gives numpy's
+    lstsq solution on the stacked design matrix, across runs and block edges."""
+    from gyrotherm.compensation import _fit
+    from gyrotherm.compensation._models import Scaling, get_model
+
+    monkeypatch.setattr(_fit, "_BLOCK_ROWS", block_rows)
+    rng = np.random.default_rng(11)
+    runs = []
+    for i, n in enumerate((50, 123, 9)):
+        t = rng.uniform(-20, 50, n)
+        d = rng.normal(0, 2, n)
+        y = 0.3 - 0.01 * t + 1e-4 * t**2 + 0.05 * d - 4e-4 * t * d + rng.normal(0, 0.01, n)
+        runs.append(_fit.RunFeatures(name=f"r{i}", source="mem", sha256="", time_s=np.arange(n),
+                                     temperature_c=t, delta_t_c=d, rates_dps={"x": y}))
+    spec, scaling = get_model("paper"), Scaling(15.0, 35.0, 2.0)
+    got = _fit._solve(spec, scaling, runs, "x")
+    t = np.concatenate([r.temperature_c for r in runs])
+    d = np.concatenate([r.delta_t_c for r in runs])
+    y = np.concatenate([r.rates_dps["x"] for r in runs])
+    want = np.linalg.lstsq(spec.design(*scaling.centre(t, d)), y, rcond=None)[0]
+    np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-13)
+    flat = [_fit.RunFeatures(name="flat", source="mem", sha256="", time_s=np.arange(40),
+                             temperature_c=np.full(40, 20.0), delta_t_c=rng.normal(0, 1, 40),
+                             rates_dps={"x": rng.normal(0, 1, 40)})]
+    rank = np.linalg.lstsq(spec.design(*scaling.centre(flat[0].temperature_c,
+                                                       flat[0].delta_t_c)),
+                           flat[0].rates_dps["x"], rcond=None)[2]
+    assert rank == 2  # T constant: {T², T, 1} and {ΔT, T·ΔT} collapse to one column each
+    with pytest.raises(CalibrationError, match="design rank 2 < 5"):
+        _fit._solve(spec, scaling, flat, "x")

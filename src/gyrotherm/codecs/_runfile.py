@@ -27,12 +27,12 @@ import io
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import NoReturn
 
 import numpy as np
 from numpy.typing import NDArray
 
 from gyrotherm._errors import RunFileError
+from gyrotherm.codecs._runbody import parse_body
 
 RUN_FILE_VERSION = 1
 AXES = ("x", "y", "z")
@@ -45,6 +45,11 @@ FloatArray = NDArray[np.float64]
 
 
 def _frozen(a: FloatArray) -> FloatArray:
+    """A read-only float64 copy; an array that is already read-only float64 and owns
+    its data (as the reader's columns) is taken as it is, not copied again."""
+    if (isinstance(a, np.ndarray) and a.dtype == np.float64 and a.base is None
+            and not a.flags.writeable and a.flags.c_contiguous):
+        return a
     out = np.array(a, dtype=np.float64, copy=True)
     out.setflags(write=False)
     return out
@@ -188,24 +193,43 @@ def read_run(path: str | Path) -> Run:
         raw = p.read_bytes()
     except OSError as exc:
         raise RunFileError(f"{p}: cannot read run file: {exc.strerror}") from exc
+    digest = hashlib.sha256(raw).hexdigest()
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise RunFileError(f"{p}: not UTF-8 text (byte {exc.start})") from exc
-    return parse_run(text, source=str(p), sha256=hashlib.sha256(raw).hexdigest())
+    del raw  # the bytes are not needed once decoded (half the memory of a large log)
+    return parse_run(text, source=str(p), sha256=digest)
+
+
+def _next_line(text: str, pos: int) -> tuple[str, int]:
+    """The line starting at ``pos`` (without its end: \\n, \\r\\n or \\r) and where the
+    next one starts (``len(text)`` at the end)."""
+    n = text.find("\n", pos)
+    r = text.find("\r", pos, n if n >= 0 else len(text))
+    if r >= 0:  # \r or \r\n ends this line
+        return text[pos:r], r + 2 if text.startswith("\r\n", r) else r + 1
+    if n < 0:
+        return text[pos:], len(text)
+    return text[pos:n], n + 1
 
 
 def parse_run(text: str, *, source: str = "<memory>", sha256: str = "") -> Run:
-    """Parse CSV version 1 ``text``; ``source`` names it in errors."""
+    """Parse CSV version 1 ``text``; ``source`` names it in errors.
+
+    Only the few header lines are split off as Python strings; the body goes to
+    numpy's C parser in one piece, so memory stays near the size of the text plus
+    the columns (a 3.6·10⁶-row log is not turned into millions of line objects).
+    """
     if not sha256:
         sha256 = hashlib.sha256(text.encode("utf-8")).hexdigest()
-    lines = text.splitlines()
-    if not lines or not lines[0].strip():
+    first_line, pos = _next_line(text, 0)
+    if not first_line.strip():
         raise RunFileError(f"{source}: line 1: empty file, expected '# {_MAGIC}: 1'")
-    first = lines[0].lstrip("#").strip()
+    first = first_line.lstrip("#").strip()
     key, _, value = first.partition(":")
-    if not lines[0].startswith("#") or key.strip() != _MAGIC:
-        raise RunFileError(f"{source}: line 1: expected '# {_MAGIC}: 1', got {lines[0][:60]!r}")
+    if not first_line.startswith("#") or key.strip() != _MAGIC:
+        raise RunFileError(f"{source}: line 1: expected '# {_MAGIC}: 1', got {first_line[:60]!r}")
     if value.strip() != str(RUN_FILE_VERSION):
         raise RunFileError(
             f"{source}: line 1: unsupported run file version {value.strip()!r} "
@@ -213,14 +237,17 @@ def parse_run(text: str, *, source: str = "<memory>", sha256: str = "") -> Run:
         )
     metadata: dict[str, str] = {}
     i = 1
-    while i < len(lines) and lines[i].startswith("#"):
-        k, sep, v = lines[i][1:].partition(":")
+    line, after = _next_line(text, pos)
+    while pos < len(text) and line.startswith("#"):
+        k, sep, v = line[1:].partition(":")
         if sep:
             metadata[k.strip()] = v.strip()
         i += 1
-    if i >= len(lines):
+        pos = after
+        line, after = _next_line(text, pos)
+    if pos >= len(text):
         raise RunFileError(f"{source}: line {i + 1}: missing header row (time_s,temperature_c,...)")
-    header = [h.strip() for h in lines[i].split(",")]
+    header = [h.strip() for h in line.split(",")]
     header_line = i + 1
     for required in ("time_s", "temperature_c"):
         if required not in header:
@@ -233,14 +260,8 @@ def parse_run(text: str, *, source: str = "<memory>", sha256: str = "") -> Run:
     dupes = {h for h in header if header.count(h) > 1}
     if dupes:
         raise RunFileError(f"{source}: line {header_line}: duplicate columns {sorted(dupes)}")
-    body = lines[i + 1 :]
     first_data_line = header_line + 1
-    # Drop trailing blank lines; blank lines inside the body are errors.
-    while body and not body[-1].strip():
-        body.pop()
-    if not body:
-        raise RunFileError(f"{source}: line {first_data_line}: no data rows")
-    col = _parse_body(body, header, source, first_data_line)
+    col = parse_body(text, after, header, _KNOWN, source=source, first_line=first_data_line)
     t = col["time_s"]
     steps = np.diff(t)
     if (steps <= 0).any():
@@ -272,111 +293,3 @@ _KNOWN = frozenset(
 
 def _is_known(column: str) -> bool:
     return column in _KNOWN
-
-
-def _loadtxt(text: str, usecols: list[int] | None = None) -> FloatArray:
-    data: FloatArray = np.loadtxt(
-        io.StringIO(text),
-        delimiter=",",
-        ndmin=2,
-        dtype=np.float64,
-        comments=None,
-        usecols=usecols,
-    )
-    return data
-
-
-def _parse_body(
-    body: list[str], header: list[str], source: str, first_line: int
-) -> dict[str, FloatArray]:
-    """Columns by header name: every known column, and the unknown ones that are all finite.
-
-    Known columns are strict: a field that is blank, not a number or not finite is
-    an error naming line and column. An unknown column that does not parse as
-    finite numbers throughout is left out (not an error).
-    """
-    text = "\n".join(body)
-    width = len(header)
-    known = [j for j, h in enumerate(header) if h in _KNOWN]
-    unknown = [j for j, h in enumerate(header) if h not in _KNOWN]
-    # Fast path: one C-level pass over every column (np.loadtxt skips blank
-    # lines, so the row count is checked too).
-    data: FloatArray | None = None
-    try:
-        data = _loadtxt(text)
-    except ValueError:
-        pass
-    if data is not None and data.shape == (len(body), width):
-        _check_finite(data[:, known], [header[j] for j in known], source, first_line)
-        return {
-            header[j]: data[:, j]
-            for j in range(width)
-            if j in known or bool(np.isfinite(data[:, j]).all())
-        }
-    # Slow path: field counts per line, then the known columns strictly, then
-    # each unknown column on its own.
-    _check_widths(body, width, source, first_line)
-    try:
-        strict = _loadtxt(text, usecols=known)
-    except ValueError:
-        _explain(body, header, known, source, first_line)
-    if strict.shape[0] != len(body):  # pragma: no cover  (blank lines fail the width check)
-        raise RunFileError(f"{source}: unreadable data rows")
-    _check_finite(strict, [header[j] for j in known], source, first_line)
-    col = {header[j]: strict[:, k] for k, j in enumerate(known)}
-    for j in unknown:
-        try:
-            values = _loadtxt(text, usecols=[j])[:, 0]
-        except ValueError:
-            continue
-        if len(values) == len(body) and bool(np.isfinite(values).all()):
-            col[header[j]] = values
-    return col
-
-
-def _check_finite(data: FloatArray, names: list[str], source: str, first_line: int) -> None:
-    bad = ~np.isfinite(data)
-    if bad.any():
-        row, k = map(int, np.argwhere(bad)[0])
-        raise RunFileError(
-            f"{source}: line {first_line + row}: column {names[k]!r} is not a finite number"
-        )
-
-
-def _check_widths(body: list[str], width: int, source: str, first_line: int) -> None:
-    commas = width - 1
-    for k, line in enumerate(body):
-        if not line.strip():
-            raise RunFileError(f"{source}: line {first_line + k}: blank line inside the data")
-        if line.count(",") != commas:
-            raise RunFileError(
-                f"{source}: line {first_line + k}: expected {width} fields, "
-                f"got {line.count(',') + 1}"
-            )
-
-
-def _is_number(text: str) -> bool:
-    """What np.loadtxt accepts: float() syntax without underscores or non-ASCII digits."""
-    if "_" in text or not text.isascii():
-        return False
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
-def _explain(
-    body: list[str], header: list[str], known: list[int], source: str, first_line: int
-) -> NoReturn:
-    """Raise a RunFileError for the first known field that is blank or not a number."""
-    for k, line in enumerate(body):
-        fields = line.split(",")
-        for j in known:
-            field_text = fields[j].strip()
-            where = f"{source}: line {first_line + k}: column {header[j]!r}"
-            if not field_text:
-                raise RunFileError(f"{where} is blank")
-            if not _is_number(field_text):
-                raise RunFileError(f"{where}: {field_text!r} is not a number")
-    raise RunFileError(f"{source}: unreadable data rows")  # pragma: no cover

@@ -101,6 +101,10 @@ class BiasEstimate:
     merged over axes (:meth:`Compensator.step`; 0 from :meth:`Calibration.bias_at`)."""
 
 
+SERIES_BLOCK_ROWS = 1 << 16
+"""Rows evaluated at a time by :meth:`Calibration.base_series`."""
+
+
 @dataclass(frozen=True)
 class Calibration:
     """A fitted bias model for one gyro: coefficients, scaling, ranges, estimator."""
@@ -160,10 +164,19 @@ class Calibration:
 
     def base_series(self, axis: str, temperature_c: FloatArray, delta_t_c: FloatArray
                     ) -> FloatArray:
-        """:meth:`base_bias` on arrays (equal to rounding)."""
-        x, g = self.scaling.centre(np.asarray(temperature_c), np.asarray(delta_t_c))
-        bias = self.model.design(x, g) @ np.asarray(self.coefficients[axis])
-        return np.asarray(bias, dtype=np.float64)
+        """:meth:`base_bias` on arrays (equal to rounding), :data:`SERIES_BLOCK_ROWS`
+        rows at a time (the design matrix of a long log is never formed whole)."""
+        t, d = np.asarray(temperature_c), np.asarray(delta_t_c)
+        coef = np.asarray(self.coefficients[axis], dtype=np.float64)
+        if t.shape != d.shape or t.ndim != 1:  # scalars, broadcasting: no blocks
+            x, g = self.scaling.centre(t, d)
+            return np.asarray(self.model.design(x, g) @ coef, dtype=np.float64)
+        bias = np.empty(len(t))
+        for start in range(0, len(t), SERIES_BLOCK_ROWS):
+            stop = start + SERIES_BLOCK_ROWS
+            x, g = self.scaling.centre(t[start:stop], d[start:stop])
+            bias[start:stop] = self.model.design(x, g) @ coef
+        return bias
 
     def physical_coefficients(self, axis: str) -> dict[str, float]:
         """Coefficients of the model's terms in physical units (T, ΔT in °C)."""

@@ -23,7 +23,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Literal, TypeVar
+from typing import Literal, TypeVar, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -101,22 +101,46 @@ def common_axes(runs: Sequence[RunFeatures]) -> tuple[str, ...]:
     return tuple(axes)
 
 
+_BLOCK_ROWS = 1 << 16
+"""Rows of the design matrix formed at a time (bounded memory on long logs)."""
+
+
 def _solve(spec: ModelSpec, scaling: Scaling, runs: Sequence[RunFeatures], axis: str) -> FloatArray:
-    t = np.concatenate([r.rows(r.temperature_c) for r in runs])
-    d = np.concatenate([r.rows(r.delta_t_c) for r in runs])
-    y = np.concatenate([r.rows(r.rates_dps[axis]) for r in runs])
-    a = spec.design(*scaling.centre(t, d))
-    if len(y) < 2 * a.shape[1]:
-        raise CalibrationError(
-            f"model {spec.name!r} needs at least {2 * a.shape[1]} rows, got {len(y)}"
-        )
-    coef, _, rank, _ = np.linalg.lstsq(a, y, rcond=None)
-    if rank < a.shape[1]:
+    """Least squares of the raw rate on the model's terms, over every row of ``runs``
+    (the rest rows of runs with a rest mask).
+
+    Blockwise Householder QR: the (k+1)-column matrix ``[A | y]`` is reduced one
+    block of rows at a time, ``R ← qr([[R], [A_block | y_block]])``, so only the
+    triangular ``R`` ((k+1)×(k+1)) and one block live at once; the last column of
+    ``R`` is ``Qᵀy`` and ``R[:k, :k] c = Qᵀy[:k]`` gives the same solution as
+    ``lstsq(A, y)`` (to rounding). Rank: the singular values of ``R[:k, :k]`` (those
+    of ``A``) against ``lstsq``'s default cut ``max(n, k)·ε·σ_max``.
+    """
+    k = len(spec.terms)
+    r = np.zeros((0, k + 1))
+    n = 0
+    for run in runs:
+        rate = run.rates_dps[axis]
+        for start in range(0, len(rate), _BLOCK_ROWS):
+            stop = start + _BLOCK_ROWS
+            keep = slice(None) if run.rest is None else run.rest[start:stop]
+            a = spec.design(*scaling.centre(run.temperature_c[start:stop][keep],
+                                            run.delta_t_c[start:stop][keep]))
+            block = np.column_stack([a, rate[start:stop][keep]])
+            r = cast(FloatArray, np.linalg.qr(np.vstack([r, block]), mode="r"))
+            n += len(block)
+    if n < 2 * k:
+        raise CalibrationError(f"model {spec.name!r} needs at least {2 * k} rows, got {n}")
+    rk = r[:k, :k]
+    sv = np.linalg.svd(rk, compute_uv=False) if rk.shape[0] == k else np.zeros(k)
+    rank = int(np.sum(sv > max(n, k) * np.finfo(np.float64).eps * (sv[0] if len(sv) else 0)))
+    if rank < k:
         raise CalibrationError(
             f"model {spec.name!r} is not identifiable from runs "
-            f"{[r.name for r in runs]}: design rank {rank} < {a.shape[1]} terms "
+            f"{[r.name for r in runs]}: design rank {rank} < {k} terms "
             "(e.g. no temperature change, or no ΔT variation for a ΔT model)"
         )
+    coef = np.linalg.solve(rk, r[:k, k])
     return np.asarray(coef, dtype=np.float64)
 
 
@@ -130,17 +154,26 @@ def mean_coefficients(per_run: Sequence[FloatArray]) -> FloatArray:
     return np.asarray(stacked.mean(axis=0), dtype=np.float64)
 
 
+def _extremes(runs: Sequence[RunFeatures]) -> tuple[FloatArray, FloatArray]:
+    """Per run (rest rows, runs with none left out): [T min, T max] and [ΔT min, ΔT max]
+    — what the range and the scaling need, without concatenating long logs."""
+    t, d = [], []
+    for r in runs:
+        rt, rd = r.rows(r.temperature_c), r.rows(r.delta_t_c)
+        if len(rt):
+            t += [float(rt.min()), float(rt.max())]
+            d += [float(rd.min()), float(rd.max())]
+    return np.asarray(t, dtype=np.float64), np.asarray(d, dtype=np.float64)
+
+
 def _range(runs: Sequence[RunFeatures]) -> ValidRange:
-    t = np.concatenate([r.rows(r.temperature_c) for r in runs])
-    d = np.concatenate([r.rows(r.delta_t_c) for r in runs])
+    t, d = _extremes(runs)
     return ValidRange(float(t.min()), float(t.max()), float(d.min()), float(d.max()))
 
 
 def default_scaling(runs: Sequence[RunFeatures]) -> Scaling:
-    return Scaling.from_data(
-        np.concatenate([r.rows(r.temperature_c) for r in runs]),
-        np.concatenate([r.rows(r.delta_t_c) for r in runs]),
-    )
+    """:meth:`Scaling.from_data` of all runs' rows (the same from their extremes)."""
+    return Scaling.from_data(*_extremes(runs))
 
 
 def fit(

@@ -1,11 +1,10 @@
 """Estimators: the Kalman-filtered temperature / ΔT estimator."""
 
+from gyrotherm.estimators._series import EstimateSeries, estimate_series
 from gyrotherm.estimators._temperature import (
-    EstimateSeries,
     EstimatorConfig,
     TemperatureEstimate,
     TemperatureEstimator,
-    estimate_series,
 )
 
 __all__ = [
