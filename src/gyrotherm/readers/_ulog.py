@@ -79,7 +79,7 @@ def read_ulog(path: str | os.PathLike[str]) -> list[Run]:
         raise RunFileError(
             f"{p}: no {GYRO_TOPIC!r} topic logged (this log has {len(ulog.data_list)} "
             f"topics among {GYRO_TOPIC!r}/{ACCEL_TOPIC!r}: {logged}); enable it in the "
-            "PX4 logger profile (SDLOG_PROFILE, e.g. 'high rate' or 'sensor comparison')")
+            "PX4 logger (SDLOG_PROFILE 'thermal calibration' or 'sensor comparison')")
     accels = {d.multi_id: d for d in ulog.data_list if d.name == ACCEL_TOPIC}
     sha = sha256_of(p)
     corrupt = bool(getattr(ulog, "file_corruption", False))
