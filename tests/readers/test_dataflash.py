@@ -39,6 +39,21 @@ def test_each_imu_instance_with_values_converted() -> None:
     assert i1.metadata["device_id"] == "IMU[1]" and i1.source == str(FIXTURE)
 
 
+def test_numpy_decode_agrees_with_pymavlinks_own_messages() -> None:
+    from pymavlink.DFReader import DFReader_binary
+
+    log = DFReader_binary(str(FIXTURE))
+    by_instance: dict[int, list[tuple[float, float, float]]] = {}
+    while (m := log.recv_match(type="IMU")) is not None:
+        by_instance.setdefault(m.I, []).append((m.TimeUS * 1e-6, m.T, m.GyrX))
+    for run in read_dataflash(FIXTURE):
+        expected = sorted(dict((t, (t, T, g)) for t, T, g in reversed(
+            by_instance[int(run.metadata["instance"])])).values())
+        got = list(zip(run.time_s, run.temperature_c, run.rates_dps["x"] / (180 / np.pi),
+                       strict=True))
+        np.testing.assert_allclose(got, expected, rtol=1e-12)
+
+
 def test_legacy_imu_imu2_messages(tmp_path: Path) -> None:
     p = tmp_path / "old.bin"
     p.write_bytes(dataflashkit.legacy())

@@ -18,7 +18,8 @@ log cut short is read up to its last whole message.
 
 pymavlink indexes the log (message offsets, ``FMT`` formats, its struct codes and
 multipliers); the IMU messages' fields are then gathered with numpy in chunks,
-not one Python object per message (≈ 100× faster on flight logs).
+not one Python object per message (200 k messages: 27 s → 4 s, of which the
+decode is 0.2 s and pymavlink's indexing the rest).
 """
 
 from __future__ import annotations
