@@ -107,7 +107,8 @@ def make_run(
     units (time already in s, temperature in °C, rates × ``rate_to_dps`` → °/s).
 
     ``where`` names the message or topic in errors. Accelerometer values may be NaN
-    (no sample near): they are kept only when every remaining row has one.
+    (no sample near): the accelerometer is kept only when every remaining row has
+    one, else left out with the count in metadata ``accel_rows_missing``.
     """
     t = np.asarray(time_s, dtype=np.float64)
     temp = np.asarray(temperature_c, dtype=np.float64)
@@ -122,12 +123,16 @@ def make_run(
     rows, reordered, dupes = sort_unique(t[finite])
     sel = np.flatnonzero(finite)[rows]
     extra: dict[str, FloatArray] = {}
+    accel_missing = 0
     for a, v in (accel_mps2 or {}).items():
         acc = np.asarray(v, dtype=np.float64)[sel]
-        if np.isfinite(acc).all():
-            extra[ACCEL_KEYS[a]] = acc
+        accel_missing = max(accel_missing, int(np.count_nonzero(~np.isfinite(acc))))
+        extra[ACCEL_KEYS[a]] = acc
+    if accel_missing:  # keep the accelerometer only when every row has it
+        extra = {}
     meta = {
         **metadata,
+        **({"accel_rows_missing": str(accel_missing)} if accel_missing else {}),
         "rows_nonfinite_dropped": str(nonfinite),
         "rows_reordered": str(reordered),
         "rows_duplicate_time_dropped": str(dupes),
