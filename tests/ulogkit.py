@@ -104,6 +104,18 @@ def nan_temperature() -> bytes:
     return out
 
 
+def no_temperature_field() -> bytes:
+    """A sensor_gyro format without the temperature field (as in early PX4 logs)."""
+    fields = [f for f in GYRO_FIELDS if f[1] != "temperature"]
+    out = MAGIC + struct.pack("<BQ", 1, 0)
+    out += _msg(b"B", bytes(16) + struct.pack("<3Q", 0, 0, 0))
+    out += _format("sensor_gyro", fields)
+    out += _msg(b"A", struct.pack("<BH", 0, 0) + b"sensor_gyro")
+    for ts, tss, x, y, z, _ in GYRO0[:3]:
+        out += _msg(b"D", struct.pack("<H", 0) + _pack(fields, [ts, tss, 1, x, y, z, 0]))
+    return out
+
+
 def write(path: Path, data: bytes) -> Path:
     path.write_bytes(data)
     return path

@@ -103,3 +103,10 @@ def test_no_temperature(tmp_path: Path) -> None:
     with pytest.raises(RunFileError,
                        match=r"nan\.ulg: topic 'sensor_gyro' instance 0: no temperature"):
         read_ulog(bad)
+
+
+def test_no_temperature_field(tmp_path: Path) -> None:
+    bad = ulogkit.write(tmp_path / "old.ulg", ulogkit.no_temperature_field())
+    with pytest.raises(RunFileError, match=r"old\.ulg: topic 'sensor_gyro' instance 0: missing "
+                                           r"field\(s\) \['temperature'\]"):
+        read_ulog(bad)
