@@ -36,8 +36,13 @@ def _header(ns: int, frame: str) -> object:
     return h(stamp=t(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), frame_id=frame)
 
 
-def imu_msg(ns: int, frame: str, w: Sequence[float], a: Sequence[float] | None) -> bytes:
+def imu_msg(ns: int, frame: str, w: Sequence[float] | None,
+            a: Sequence[float] | None) -> bytes:
     v3 = STORE.types["geometry_msgs/msg/Vector3"]
+    w_cov = np.zeros(9)
+    if w is None:
+        w_cov[0] = -1.0
+        w = (0.0, 0.0, 0.0)
     q = STORE.types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)
     acc_cov = np.zeros(9)
     if a is None:  # REP 145: covariance[0] = -1 marks the field as absent
@@ -45,7 +50,7 @@ def imu_msg(ns: int, frame: str, w: Sequence[float], a: Sequence[float] | None) 
         a = (0.0, 0.0, 0.0)
     msg = STORE.types[IMU](
         header=_header(ns, frame), orientation=q, orientation_covariance=np.full(9, -1.0),
-        angular_velocity=v3(x=w[0], y=w[1], z=w[2]), angular_velocity_covariance=np.zeros(9),
+        angular_velocity=v3(x=w[0], y=w[1], z=w[2]), angular_velocity_covariance=w_cov,
         linear_acceleration=v3(x=a[0], y=a[1], z=a[2]), linear_acceleration_covariance=acc_cov)
     return bytes(STORE.serialize_cdr(msg, IMU))
 

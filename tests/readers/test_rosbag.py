@@ -106,6 +106,18 @@ def test_no_imu_topic(tmp_path: Path) -> None:
         read_rosbag(bag)
 
 
+def test_angular_velocity_marked_absent(tmp_path: Path) -> None:
+    topics = {"/t": rosbagkit.TEMPERATURE, "/imu": rosbagkit.IMU}
+    ns = rosbagkit.T0_NS
+    bag = rosbagkit.write_bag(tmp_path / "orient", topics, [
+        ("/t", ns, rosbagkit.temperature_msg(ns, "t", 20.0)),
+        ("/imu", ns + 1, rosbagkit.imu_msg(ns + 1, "imu", None, (0.0, 0.0, 9.8))),
+        ("/imu", ns + 2, rosbagkit.imu_msg(ns + 2, "imu", None, (0.0, 0.0, 9.8)))])
+    with pytest.raises(RunFileError, match=r"orient: IMU topic '/imu' frame_id 'imu': no "
+                                           r"finite samples in 2"):
+        read_rosbag(bag)
+
+
 def test_truncated_mcap(tmp_path: Path) -> None:
     data = MCAP.read_bytes()
     cut = tmp_path / "cut.mcap"

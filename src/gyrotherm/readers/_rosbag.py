@@ -7,7 +7,8 @@ release).
   topic and ``header.frame_id``. ``header.stamp`` (the sample's time, s since the
   epoch; float64 resolves ≈ 0.24 µs there) → ``time_s``, the bag's receive
   time when the stamp is zero (metadata ``time_field``); ``angular_velocity``
-  (rad/s) → ``rates_dps`` (× 180/π);
+  (rad/s) → ``rates_dps`` (× 180/π; a message marking it absent,
+  ``angular_velocity_covariance[0] == -1``, counts as a non-finite row);
   ``linear_acceleration`` (m/s²) → ``Run.extra`` ``accel_<axis>_mps2`` unless
   the message marks it absent (``linear_acceleration_covariance[0] == -1``).
 * Temperature: a ``sensor_msgs/msg/Temperature`` topic (``temperature`` in °C,
@@ -133,9 +134,11 @@ def _read(p: Path, reader: Any, imu_topic: str | None, temperature_topic: str | 
                 ns = log_ns
             w, a = msg.angular_velocity, msg.linear_acceleration
             has_acc = float(msg.linear_acceleration_covariance[0]) != -1.0
+            has_rate = float(msg.angular_velocity_covariance[0]) != -1.0
             nan = float("nan")
             imu_rows.setdefault((conn.topic, msg.header.frame_id), []).append(
-                (ns, w.x, w.y, w.z, *((a.x, a.y, a.z) if has_acc else (nan, nan, nan))))
+                (ns, *((w.x, w.y, w.z) if has_rate else (nan, nan, nan)),
+                 *((a.x, a.y, a.z) if has_acc else (nan, nan, nan))))
     except Exception as exc:  # truncated/corrupt storage, undecodable message
         raise RunFileError(f"{p}: unreadable message in the bag: {exc}") from exc
     fmt = "mcap" if p.is_file() and p.suffix.lower() == ".mcap" else "rosbag2"
