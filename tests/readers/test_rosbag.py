@@ -132,3 +132,9 @@ def test_not_a_bag(tmp_path: Path) -> None:
     d.mkdir()
     with pytest.raises(RunFileError, match=r"empty_dir: not a readable rosbag2/MCAP file"):
         read_rosbag(d)
+
+
+def test_real_ros2_bag_without_imu_lists_its_topics() -> None:
+    with pytest.raises(RunFileError, match=r"ros2_talker\.mcap: no sensor_msgs/msg/Imu topic in "
+                                           r"the bag \(topics: .*'/topic \[std_msgs/msg/String\]'"):
+        read_rosbag(DATA / "ros2_talker.mcap")
