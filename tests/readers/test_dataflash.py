@@ -70,9 +70,11 @@ def test_truncated_log_reads_whole_messages(tmp_path: Path) -> None:
     p.write_bytes(data[:-20])  # into the last GYR message
     i0, _ = read_dataflash(p)
     assert len(i0) == 3
+    assert i0.metadata["messages_cut_at_end"] == "0"
     p.write_bytes(data[:-40])  # into the last IMU message: that sample is gone
     i0, _ = read_dataflash(p)
     np.testing.assert_allclose(i0.time_s, [5.0, 5.0025])
+    assert i0.metadata["messages_cut_at_end"] == "1"
 
 
 @pytest.mark.parametrize(("content", "pattern"), [

@@ -14,7 +14,8 @@ One run per IMU instance, from the ``IMU`` message (ArduPilot
 Logs from before the ``I`` column (ArduPilot ≤ 3.x) log instances as separate
 messages ``IMU``, ``IMU2``, ``IMU3`` with the temperature in ``Temp`` (and
 ``TimeMS`` in ms in the oldest): read the same way, instance from the name. A
-log cut short is read up to its last whole message.
+log cut short is read up to its last whole message (metadata
+``messages_cut_at_end`` counts the IMU messages lost, all instances).
 
 pymavlink indexes the log (message offsets, ``FMT`` formats, its struct codes and
 multipliers); the IMU messages' fields are then gathered with numpy in chunks,
@@ -70,16 +71,17 @@ def _dtype(path: Path, name: str, msg_struct: str) -> np.dtype[np.void]:
     return np.dtype(fields)
 
 
-def _decode(path: Path, log: Any, name: str) -> dict[str, FloatArray]:
+def _decode(path: Path, log: Any, name: str) -> tuple[dict[str, FloatArray], int]:
     """Every ``name`` message's columns (multipliers applied), from pymavlink's index
-    of the log (``offsets``, ``formats``); a message cut by the end of file is left out."""
+    of the log (``offsets``, ``formats``), and how many were cut by the end of the
+    file (left out)."""
     mtype = log.name_to_id[name]
     fmt = log.formats[mtype]
     columns: list[str] = list(fmt.columns)
     time_col, temp_col = _layout(path, name, columns)
     wanted = [time_col, temp_col, *_GYRO, *_ACCEL] + (["I"] if "I" in columns else [])
-    offs = np.asarray(log.offsets[mtype], dtype=np.int64)
-    offs = offs[offs + int(fmt.len) <= int(log.data_len)]
+    listed = np.asarray(log.offsets[mtype], dtype=np.int64)
+    offs = listed[listed + int(fmt.len) <= int(log.data_len)]
     dtype = _dtype(path, name, fmt.msg_struct)
     if dtype.itemsize != int(fmt.len) - 3:
         raise RunFileError(f"{path}: message {name!r}: FMT length {fmt.len} does not match "
@@ -95,7 +97,7 @@ def _decode(path: Path, log: Any, name: str) -> dict[str, FloatArray]:
             mult = fmt.msg_mults[i]
             v = rec[f"f{i}"].astype(np.float64)
             out[c][start:start + len(chunk)] = v * mult if mult is not None else v
-    return out
+    return out, len(listed) - len(offs)
 
 
 def read_dataflash(path: str | os.PathLike[str]) -> list[Run]:
@@ -112,8 +114,10 @@ def read_dataflash(path: str | os.PathLike[str]) -> list[Run]:
         raise RunFileError(f"{p}: no IMU message (of {list(MESSAGES)}) in the log; message "
                            f"formats defined: {seen or 'none (not a DataFlash log?)'}")
     parts: list[tuple[int, str, dict[str, FloatArray]]] = []
+    cut = 0
     for name in present:
-        cols = _decode(p, log, name)
+        cols, n_cut = _decode(p, log, name)
+        cut += n_cut
         if "I" in cols:
             for inst in np.unique(cols["I"]).astype(int):
                 sel = cols["I"] == inst
@@ -135,6 +139,7 @@ def read_dataflash(path: str | os.PathLike[str]) -> list[Run]:
             "unit_temperature": "degC",
             "unit_rate": "rad/s",
             "unit_accel": "m/s2",
+            "messages_cut_at_end": str(cut),
         }
         runs.append(make_run(
             path=p, device=f"IMU[{inst}]", where=f"message {name!r} instance {inst}",
