@@ -69,7 +69,12 @@ def test_real_px4_log() -> None:
         assert set(r.extra) == {"accel_x_mps2", "accel_y_mps2", "accel_z_mps2"}
         g = np.sqrt(sum(r.extra[k] ** 2 for k in r.extra))
         assert np.all(np.abs(g - 9.81) < 1.5)  # the accelerometer sees gravity
-    np.testing.assert_allclose(runs[0].temperature_c[:2], [40.025372, 40.073292], rtol=1e-6)
+    # first rows as pyulog's ulog2csv prints them for the original sample_log_small.ulg:
+    # 21311647 µs, x -0.04130321 rad/s (= -2.366500 °/s), 40.02537 °C; 2nd: 40.07329 °C
+    np.testing.assert_allclose(runs[0].time_s[0], 21.311647, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(runs[0].rates_dps["x"][0], -0.04130321 * 180 / np.pi, rtol=1e-6)
+    np.testing.assert_allclose(runs[0].temperature_c[:2], [40.02537, 40.07329], rtol=1e-6)
+    np.testing.assert_allclose(runs[1].temperature_c[0], 28.246023, rtol=1e-6)
 
 
 def test_truncated_header(tmp_path: Path) -> None:
