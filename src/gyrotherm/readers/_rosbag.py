@@ -1,0 +1,176 @@
+"""rosbag2 (``.db3``, MCAP storage, or the bag directory) and plain ``.mcap``
+reader, via rosbags (ROS 2 CDR messages, decoded with rosbags' ROS 2 Humble
+type store: ``sensor_msgs`` Imu and Temperature are the same in every ROS 2
+release).
+
+* IMU: every ``sensor_msgs/msg/Imu`` topic (or only ``imu_topic``); one run per
+  topic and ``header.frame_id``. ``header.stamp`` (the sample's time, s since the
+  epoch; float64 resolves ≈ 0.24 µs there) → ``time_s``, the bag's receive
+  time when the stamp is zero (metadata ``time_field``); ``angular_velocity``
+  (rad/s) → ``rates_dps`` (× 180/π; a message marking it absent,
+  ``angular_velocity_covariance[0] == -1``, counts as a non-finite row);
+  ``linear_acceleration`` (m/s²) → ``Run.extra`` ``accel_<axis>_mps2`` unless
+  the message marks it absent (``linear_acceleration_covariance[0] == -1``).
+* Temperature: a ``sensor_msgs/msg/Temperature`` topic (``temperature`` in °C,
+  its ``header.stamp``). ``temperature_topic`` names it; without it the only
+  such topic is taken, or, with several, the one in the IMU topic's namespace
+  (``/imu0/data`` ↔ ``/imu0/temperature``); anything else is an error listing
+  the candidates. Each IMU sample takes the latest temperature at or before
+  its stamp (hold); samples before the first temperature are dropped
+  (metadata ``rows_before_first_temperature``).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gyrotherm._errors import RunFileError
+from gyrotherm.codecs import Run
+from gyrotherm.readers._common import (
+    DEG_PER_RAD,
+    S_PER_NS,
+    hold_previous,
+    make_run,
+    sha256_of,
+    sort_unique,
+)
+
+IMU_TYPE = "sensor_msgs/msg/Imu"
+TEMPERATURE_TYPE = "sensor_msgs/msg/Temperature"
+
+
+def _namespace(topic: str) -> str:
+    return topic.rsplit("/", 1)[0]
+
+
+def _pick_temperature(path: Path, imu: str, temps: Sequence[str], chosen: str | None) -> str:
+    if chosen is not None:
+        if chosen not in temps:
+            raise RunFileError(f"{path}: temperature topic {chosen!r} is not a {TEMPERATURE_TYPE}"
+                               f" topic of the bag; candidates: {list(temps)}")
+        return chosen
+    if not temps:
+        raise RunFileError(f"{path}: IMU topic {imu!r}: no {TEMPERATURE_TYPE} topic in the bag "
+                           "(a gyro temperature is needed)")
+    if len(temps) == 1:
+        return temps[0]
+    same_ns = [t for t in temps if _namespace(t) == _namespace(imu)]
+    if len(same_ns) == 1:
+        return same_ns[0]
+    raise RunFileError(f"{path}: IMU topic {imu!r}: several {TEMPERATURE_TYPE} topics "
+                       f"{list(temps)}; name one (temperature_topic / --temperature-topic)")
+
+
+def _open(path: Path) -> Any:
+    try:
+        from rosbags.rosbag2 import Reader
+    except ModuleNotFoundError as exc:  # pragma: no cover  (a runtime dependency)
+        raise RunFileError(f"{path}: reading rosbag2/MCAP needs rosbags: pip install rosbags"
+                           ) from exc
+    reader = Reader(path)
+    reader.open()
+    return reader
+
+
+def _stamp_ns(msg: Any) -> int:
+    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+
+
+def read_rosbag(path: str | os.PathLike[str], *, imu_topic: str | None = None,
+                temperature_topic: str | None = None) -> list[Run]:
+    """One :class:`Run` per IMU topic and frame_id of the bag or MCAP file ``path``.
+
+    Raises :class:`RunFileError` naming the file, the topic and what is missing.
+    """
+    p = Path(path)
+    try:
+        reader = _open(p)
+    except RunFileError:
+        raise
+    except Exception as exc:  # rosbags' ReaderError, FileNotFoundError, yaml/sqlite errors
+        raise RunFileError(f"{p}: not a readable rosbag2/MCAP file: {exc}") from exc
+    try:
+        return _read(p, reader, imu_topic, temperature_topic)
+    finally:
+        reader.close()
+
+
+def _read(p: Path, reader: Any, imu_topic: str | None, temperature_topic: str | None
+          ) -> list[Run]:
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    topics = {c.topic: c.msgtype for c in reader.connections}
+    imus = sorted(t for t, m in topics.items() if m == IMU_TYPE)
+    temps = sorted(t for t, m in topics.items() if m == TEMPERATURE_TYPE)
+    if imu_topic is not None:
+        if imu_topic not in imus:
+            raise RunFileError(f"{p}: IMU topic {imu_topic!r} is not a {IMU_TYPE} topic of the "
+                               f"bag; candidates: {imus}")
+        imus = [imu_topic]
+    if not imus:
+        raise RunFileError(f"{p}: no {IMU_TYPE} topic in the bag (topics: "
+                           f"{sorted(f'{t} [{m}]' for t, m in topics.items())})")
+    pairs = {imu: _pick_temperature(p, imu, temps, temperature_topic) for imu in imus}
+    wanted = set(pairs) | set(pairs.values())
+    imu_rows: dict[tuple[str, str], list[tuple[float, ...]]] = {}
+    temp_rows: dict[str, list[tuple[int, float]]] = {t: [] for t in pairs.values()}
+    stamp_missing: dict[str, int] = {}
+    try:
+        for conn, log_ns, raw in reader.messages([c for c in reader.connections
+                                                  if c.topic in wanted]):
+            msg: Any = store.deserialize_cdr(raw, conn.msgtype)
+            ns = _stamp_ns(msg)
+            if conn.msgtype == TEMPERATURE_TYPE:
+                temp_rows[conn.topic].append((ns or log_ns, float(msg.temperature)))
+                continue
+            if ns == 0:
+                stamp_missing[conn.topic] = stamp_missing.get(conn.topic, 0) + 1
+                ns = log_ns
+            w, a = msg.angular_velocity, msg.linear_acceleration
+            has_acc = float(msg.linear_acceleration_covariance[0]) != -1.0
+            has_rate = float(msg.angular_velocity_covariance[0]) != -1.0
+            nan = float("nan")
+            imu_rows.setdefault((conn.topic, msg.header.frame_id), []).append(
+                (ns, *((w.x, w.y, w.z) if has_rate else (nan, nan, nan)),
+                 *((a.x, a.y, a.z) if has_acc else (nan, nan, nan))))
+    except Exception as exc:  # truncated/corrupt storage, undecodable message
+        raise RunFileError(f"{p}: unreadable message in the bag: {exc}") from exc
+    fmt = "mcap" if p.is_file() and p.suffix.lower() == ".mcap" else "rosbag2"
+    sha = sha256_of(p)
+    runs: list[Run] = []
+    for (topic, frame), rows in sorted(imu_rows.items()):
+        ttopic = pairs[topic]
+        if not temp_rows[ttopic]:
+            raise RunFileError(f"{p}: temperature topic {ttopic!r} has no message "
+                               f"(IMU topic {topic!r})")
+        tt = np.asarray(temp_rows[ttopic], dtype=np.float64)
+        keep, _, _ = sort_unique(tt[:, 0])
+        a = np.asarray(rows, dtype=np.float64)
+        stamps = np.asarray([r[0] for r in rows], dtype=np.int64)
+        time_s = (stamps // 1_000_000_000).astype(np.float64) \
+            + (stamps % 1_000_000_000) * S_PER_NS
+        temperature = hold_previous(tt[keep, 0], tt[keep, 1], a[:, 0])
+        frames = sum(1 for (t, _) in imu_rows if t == topic)
+        device = topic if frames == 1 else f"{topic}[{frame}]"
+        meta = {
+            "format": fmt, "device_id": device, "instance": str(len(runs)),
+            "imu_topic": topic, "frame_id": frame, "temperature_topic": ttopic,
+            "time_field": "header.stamp" if topic not in stamp_missing
+            else f"log time for {stamp_missing[topic]} message(s) with a zero header.stamp",
+            "unit_time": "ns", "unit_temperature": "degC", "unit_rate": "rad/s",
+            "unit_accel": "m/s2",
+            "rows_before_first_temperature": str(int(np.count_nonzero(np.isnan(temperature)))),
+        }
+        runs.append(make_run(
+            path=p, device=device, where=f"IMU topic {topic!r} frame_id {frame!r}",
+            time_s=time_s, temperature_c=temperature,
+            rates={ax: a[:, 1 + k] for k, ax in enumerate("xyz")}, rate_to_dps=DEG_PER_RAD,
+            accel_mps2={ax: a[:, 4 + k] for k, ax in enumerate("xyz")},
+            metadata=meta, sha256=sha))
+    return runs

@@ -1,0 +1,133 @@
+"""PX4 ULog (``.ulg``) reader, via pyulog.
+
+One run per ``sensor_gyro`` instance (ULog ``multi_id``), in ascending instance
+order. Fields used (PX4 ``msg/SensorGyro.msg``):
+
+* ``timestamp_sample`` (µs since boot, the sample's own time; ``timestamp``,
+  the publication time, when the log has no ``timestamp_sample``) → ``time_s``;
+* ``x``, ``y``, ``z`` (rad/s) → ``rates_dps`` (× 180/π);
+* ``temperature`` (°C) → ``temperature_c``; a gyro whose temperature is NaN
+  throughout is an error (PX4 logs NaN for sensors without one);
+* ``device_id`` → metadata ``device_id`` as decimal, with the decoded
+  ``DeviceStructure`` (bus type, bus, address, devtype) in ``device``.
+
+``sensor_accel`` with the same instance, when logged, is interpolated onto the
+gyro's time stamps (linear, no extrapolation) into ``Run.extra``
+``accel_<axis>_mps2`` (m/s²); metadata ``accel`` says ``sensor_accel <i>`` or
+``none``. Logs pyulog flags as corrupt are still read up to the damage
+(metadata ``file_corruption: true``).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gyrotherm._errors import RunFileError
+from gyrotherm.codecs import Run
+from gyrotherm.readers._common import (
+    DEG_PER_RAD,
+    S_PER_US,
+    FloatArray,
+    interpolate,
+    make_run,
+    sha256_of,
+    sort_unique,
+)
+
+GYRO_TOPIC = "sensor_gyro"
+ACCEL_TOPIC = "sensor_accel"
+_BUS_TYPES = {0: "unknown", 1: "I2C", 2: "SPI", 3: "UAVCAN", 4: "simulation",
+              5: "serial", 6: "MAVLink"}
+
+
+def decode_device_id(device_id: int) -> str:
+    """PX4's ``DeviceStructure`` (bus_type:3, bus:5, address:8, devtype:8, from the
+    least significant bit) as text, e.g. 263178 → ``SPI bus 1 address 0x04 devtype 0x04``."""
+    bus_type = device_id & 0x7
+    bus = (device_id >> 3) & 0x1F
+    address = (device_id >> 8) & 0xFF
+    devtype = (device_id >> 16) & 0xFF
+    kind = _BUS_TYPES.get(bus_type, f"bus type {bus_type}")
+    return f"{kind} bus {bus} address 0x{address:02x} devtype 0x{devtype:02x}"
+
+
+def _load(path: Path) -> Any:
+    try:
+        from pyulog import ULog
+    except ModuleNotFoundError as exc:  # pragma: no cover  (a runtime dependency)
+        raise RunFileError(f"{path}: reading PX4 ULog needs pyulog: pip install pyulog") from exc
+    try:
+        return ULog(str(path), [GYRO_TOPIC, ACCEL_TOPIC])
+    except Exception as exc:  # pyulog raises ULogException, struct.error, IndexError ...
+        raise RunFileError(f"{path}: not a readable PX4 ULog file: {exc}") from exc
+
+
+def read_ulog(path: str | os.PathLike[str]) -> list[Run]:
+    """Every ``sensor_gyro`` instance in ULog file ``path`` as a :class:`Run`.
+
+    Raises :class:`RunFileError` naming the file, the topic and what is missing.
+    """
+    p = Path(path)
+    ulog = _load(p)
+    gyros = sorted((d for d in ulog.data_list if d.name == GYRO_TOPIC), key=lambda d: d.multi_id)
+    if not gyros:
+        logged = sorted({d.name for d in ulog.data_list})
+        raise RunFileError(
+            f"{p}: no {GYRO_TOPIC!r} topic logged (this log has {len(ulog.data_list)} "
+            f"topics among {GYRO_TOPIC!r}/{ACCEL_TOPIC!r}: {logged}); enable it in the "
+            "PX4 logger (SDLOG_PROFILE 'thermal calibration' or 'sensor comparison')")
+    accels = {d.multi_id: d for d in ulog.data_list if d.name == ACCEL_TOPIC}
+    sha = sha256_of(p)
+    corrupt = bool(getattr(ulog, "file_corruption", False))
+    return [_run(p, g, accels.get(g.multi_id), sha, corrupt) for g in gyros]
+
+
+def _time_s(data: dict[str, Any]) -> tuple[FloatArray, str]:
+    key = "timestamp_sample" if "timestamp_sample" in data else "timestamp"
+    return np.asarray(data[key], dtype=np.float64) * S_PER_US, key
+
+
+def _run(path: Path, gyro: Any, accel: Any, sha: str, corrupt: bool) -> Run:
+    where = f"topic {GYRO_TOPIC!r} instance {gyro.multi_id}"
+    data: dict[str, Any] = gyro.data
+    need = ("x", "y", "z", "temperature", "device_id")
+    missing = [f for f in need if f not in data]
+    if missing:
+        raise RunFileError(f"{path}: {where}: missing field(s) {missing} "
+                           f"(fields: {sorted(data)})")
+    t, time_field = _time_s(data)
+    ids = np.unique(np.asarray(data["device_id"], dtype=np.int64))
+    device_id = int(ids[-1]) if len(ids) else 0
+    accel_mps2: dict[str, FloatArray] | None = None
+    accel_label = "none"
+    if accel is not None and all(a in accel.data for a in "xyz"):
+        ta, _ = _time_s(accel.data)
+        rows, _, _ = sort_unique(ta)
+        accel_mps2 = {a: interpolate(ta[rows], np.asarray(accel.data[a], np.float64)[rows], t)
+                      for a in "xyz"}
+        accel_label = f"{ACCEL_TOPIC} {accel.multi_id}"
+    meta = {
+        "format": "px4-ulog",
+        "device_id": str(device_id),
+        "device": decode_device_id(device_id),
+        "instance": str(gyro.multi_id),
+        "topic": GYRO_TOPIC,
+        "time_field": time_field,
+        "unit_time": "us",
+        "unit_temperature": "degC",
+        "unit_rate": "rad/s",
+        "unit_accel": "m/s2",
+        "accel": accel_label,
+        "file_corruption": "true" if corrupt else "false",
+    }
+    if len(ids) > 1:
+        meta["device_ids_seen"] = ",".join(str(int(i)) for i in ids)
+    return make_run(
+        path=path, device=f"{GYRO_TOPIC}{gyro.multi_id}", where=where, time_s=t,
+        temperature_c=np.asarray(data["temperature"], dtype=np.float64),
+        rates={a: np.asarray(data[a], dtype=np.float64) for a in "xyz"},
+        rate_to_dps=DEG_PER_RAD, accel_mps2=accel_mps2, metadata=meta, sha256=sha)
