@@ -201,7 +201,8 @@ def diagnose(
     selection = select(selector, margin=margin, progress=say)
     base_ev, final_ev = selection.baseline, selection.final
     final_ev, lag_note = drop_unresolved_lag(
-        selector, final_ev, lag_limit(readouts, prepared, features=features))
+        selector, final_ev, lag_limit(readouts, prepared, features=features), readouts,
+        margin=margin, seed=seed)
     if lag_note:
         notes.append(lag_note)
         say(lag_note)
