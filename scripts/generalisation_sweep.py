@@ -142,7 +142,7 @@ def run_case(case: Case, cond: Condition, seed: int) -> dict[str, Any]:
         "found": sorted(expected & names), "missed": sorted(expected - names),
         "false_alarms": sorted(names - expected), "allowed_unexplained": allowed,
         "parameter_errors": errors,
-        "unresolved_lag": any("not reported: below what" in n for n in d.notes),
+        "unresolved_lag": any("thermal_lag not reported" in n for n in d.notes),
         "gain": d.gain,
     }
 
