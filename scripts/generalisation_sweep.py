@@ -15,13 +15,16 @@ logistic warm-up; a smooth bias step at 30 °C (off-catalogue).
 Scoring against the injected truth:
 
 * **found**: every expected catalogued name is reported (wide hysteresis →
-  ``hysteresis``, the two warm-ups → ``warmup``); for the bias step, an
-  ``unexplained`` finding on ``temperature_c`` whose ``where`` brackets 30 °C;
-* **missed**: an expected name (or that unexplained finding) is absent;
-* **false alarms**: any other reported name; an ``unexplained`` finding counts
-  as one except on ``time_since_power_on_s`` for the off-catalogue warm-ups
-  (the catalogue's single exponential cannot hold them: structure left in time
-  is then real), listed as "unexplained (allowed)";
+  ``hysteresis``; the two warm-ups → ``warmup`` *or* an ``unexplained`` finding
+  on ``time_since_power_on_s``: the catalogue's single exponential is not their
+  shape, so naming the structure unexplained in time is a right answer, counted
+  in the "as unexplained" column); for the bias step, an ``unexplained`` finding
+  on ``temperature_c`` whose ``where`` brackets 30 °C;
+* **missed**: an expected name (or its alternative) is absent;
+* **false alarms**: any other reported name, ``unexplained`` ones included,
+  except an unexplained finding in time next to a found ``warmup`` for the
+  off-catalogue warm-ups (what the single exponential leaves of them is real),
+  listed as "unexplained (allowed)";
 * **parameter error**: |estimate / truth − 1| of each found effect's checked
   parameter (the hidden-effect tests' list); for the wide hysteresis the
   amplitude, for the warm-ups the amplitude at power-on (A₁ + A₂; A/(1 + e^(−t½/s))).
@@ -65,6 +68,7 @@ class Case:
     expected: tuple[str, ...] = ()
     """Expected names: catalogued effects, or ``unexplained:<variable>``."""
     allowed_unexplained: tuple[str, ...] = ()
+    """Variables whose unexplained finding also counts as finding the expected names."""
 
 
 @dataclass(frozen=True)
@@ -117,7 +121,9 @@ def run_case(case: Case, cond: Condition, seed: int) -> dict[str, Any]:
     cfg = SynthConfig(duration_s=DURATION_S, rate_hz=cond.rate_hz, readout_lsb_c=cond.lsb_c,
                       readout_period_s=cond.period_s, effects=case.effects)
     runs, truth = variant_runs(cfg, shapes=case.shapes, n_runs=cond.n_runs, seed=seed)
+    start = time.perf_counter()
     d = diagnose(runs, simulate=False)
+    elapsed = time.perf_counter() - start
     reported = {f.effect: dict(f.params) for f in d.findings}
     names = set(reported)
     allowed = []
@@ -132,6 +138,11 @@ def run_case(case: Case, cond: Condition, seed: int) -> dict[str, Any]:
             continue
         names.add(f"unexplained:{u.variable}[{lo:.3g}, {hi:.3g}]")
     expected = set(case.expected)
+    as_unexplained = []
+    if allowed and not expected & names:  # the warm-up named as unexplained in time
+        as_unexplained = sorted(expected)
+        names |= expected
+        allowed = []
     errors = {}
     for name in sorted(expected & set(reported)):
         true = _truth_param(case, truth, name)
@@ -141,15 +152,16 @@ def run_case(case: Case, cond: Condition, seed: int) -> dict[str, Any]:
         "case": case.name, "condition": cond.name, "seed": seed,
         "found": sorted(expected & names), "missed": sorted(expected - names),
         "false_alarms": sorted(names - expected), "allowed_unexplained": allowed,
+        "found_as_unexplained": as_unexplained,
         "parameter_errors": errors,
         "unresolved_lag": any("thermal_lag not reported" in n for n in d.notes),
-        "gain": d.gain,
+        "gain": d.gain, "diagnosis_s": elapsed,
     }
 
 
 def _summary(rows: Sequence[dict[str, Any]], key: str, labels: Sequence[str]) -> list[str]:
-    out = [f"| {key} | found | missed | false alarms | median param. error | max param. error |",
-           "|---|---|---|---|---|---|"]
+    out = [f"| {key} | found | as unexplained | missed | false alarms | median param. error "
+           "| max param. error |", "|---|---|---|---|---|---|---|"]
     for label in labels:
         sel = [r for r in rows if r[key] == label]
         if not sel:
@@ -164,7 +176,9 @@ def _summary(rows: Sequence[dict[str, Any]], key: str, labels: Sequence[str]) ->
         alarm_text = f"{len(alarms)}" + (f" ({', '.join(sorted(set(alarms)))})" if alarms else "")
         if allowed:
             alarm_text += f"; unexplained (allowed) ×{len(allowed)}"
-        out.append(f"| {label} | {found}/{expected} | {expected - found} | {alarm_text} | "
+        unexpl = sum(len(r["found_as_unexplained"]) for r in sel)
+        out.append(f"| {label} | {found}/{expected} | {unexpl} | {expected - found} | "
+                   f"{alarm_text} | "
                    f"{med} | {top} |")
     return out
 
