@@ -9,9 +9,14 @@
    significant beyond a threshold set for the number of replays; statistics
    the runs cannot show are listed in ``notes`` (:mod:`._compare`,
    :mod:`._simulate`, :mod:`._stats`).
-3. Select effects (forward selection with held-out and penalised criteria),
-   refit the extended model, replay it through the extended simulator, and
-   report (schema ``gyrotherm.diagnosis/1``).
+3. Select effects (forward selection with held-out and penalised criteria);
+   leave out a ``thermal_lag`` the temperature readout cannot resolve
+   (:mod:`._resolve`: below τ_min, or no better than on readout replays
+   without a lag); test residual structure no catalogued effect explains
+   (:mod:`._unexplained`: a spline in T, ΔT or time since power-on, reported
+   as an ``unexplained`` finding, not part of the extended model); refit the
+   extended model, replay it through the extended simulator, and report
+   (schema ``gyrotherm.diagnosis/1``).
 4. Optionally (:func:`export_calibration`) write the chosen extended model as a
    calibration file for every axis the runs share.
 
