@@ -9,9 +9,14 @@
    significant beyond a threshold set for the number of replays; statistics
    the runs cannot show are listed in ``notes`` (:mod:`._compare`,
    :mod:`._simulate`, :mod:`._stats`).
-3. Select effects (forward selection with held-out and penalised criteria),
-   refit the extended model, replay it through the extended simulator, and
-   report (schema ``gyrotherm.diagnosis/1``).
+3. Select effects (forward selection with held-out and penalised criteria);
+   leave out a ``thermal_lag`` the temperature readout cannot resolve
+   (:mod:`._resolve`: below τ_min, or no better than on readout replays
+   without a lag); test residual structure no catalogued effect explains
+   (:mod:`._unexplained`: a spline in T, ΔT or time since power-on, reported
+   as an ``unexplained`` finding, not part of the extended model); refit the
+   extended model, replay it through the extended simulator, and report
+   (schema ``gyrotherm.diagnosis/1``).
 4. Optionally (:func:`export_calibration`) write the chosen extended model as a
    calibration file for every axis the runs share.
 
@@ -49,8 +54,10 @@ from gyrotherm.analysis._prep import (
     prepare,
     with_tau,
 )
+from gyrotherm.analysis._resolve import drop_unresolved_lag, lag_limit
 from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._select import Selection, select
+from gyrotherm.analysis._unexplained import Unexplained, search_unexplained
 from gyrotherm.codecs import AXES, Run
 from gyrotherm.compensation import Scaling
 
@@ -90,6 +97,9 @@ class Diagnosis:
     tau_from_chamber: bool
     simulation: SimulationComparison | None = None
     notes: tuple[str, ...] = field(default_factory=tuple)
+    unexplained: tuple[Unexplained, ...] = field(default_factory=tuple)
+    """Significant residual structure no catalogued effect explains (:mod:`._unexplained`);
+    listed after the findings in ``to_dict``, not part of ``extended``."""
 
     @property
     def gain(self) -> float:
@@ -102,7 +112,8 @@ class Diagnosis:
             "axis": self.axis,
             "runs": [p.name for p in self.prepared],
             "baseline": {"model": "paper", "heldout_rms_dps": self.baseline_heldout_rms_dps},
-            "findings": [f.to_dict() for f in self.findings],
+            "findings": [f.to_dict() for f in self.findings]
+            + [u.to_dict() for u in self.unexplained],
             "extended": {
                 "model": self.extended.name,
                 "effects": [e for e in EFFECTS if e in self.extended.effects],
@@ -194,6 +205,18 @@ def diagnose(
     say("selecting effects (leave-one-run-out)")
     selection = select(selector, margin=margin, progress=say)
     base_ev, final_ev = selection.baseline, selection.final
+    final_ev, lag_note = drop_unresolved_lag(
+        selector, final_ev, lag_limit(readouts, prepared, features=features), readouts,
+        margin=margin, seed=seed)
+    if lag_note:
+        notes.append(lag_note)
+        say(lag_note)
+    say("testing residual structure no catalogued effect explains")
+    search = search_unexplained(selector, final_ev, margin=margin)
+    final_ev = search.catalogued
+    if search.dropped:
+        notes.append(f"dropped {', '.join(search.dropped)}: with the unexplained correction it "
+                     "no longer earns its place (it stood in for that structure)")
     baseline = selector.model(base_ev)
     extended = selector.model(final_ev)
     params = extended.params()
@@ -225,6 +248,7 @@ def diagnose(
         residuals=tuple(resid), extended_residuals=tuple(ext_resid),
         heldout_baseline=held_b, heldout_extended=held_e,
         tau_s=tau_s, tau_from_chamber=tau_fit is not None, notes=tuple(notes),
+        unexplained=search.unexplained,
     )
     if not simulate:
         return diagnosis
@@ -286,6 +310,7 @@ def export_calibration(
         "schema": SCHEMA, "axis": diagnosis.axis, "features": features, "margin": margin,
         "tau_s": diagnosis.tau_s, "tau_from_chamber": diagnosis.tau_from_chamber,
         "axes": record,
+        "not_deployed": [u.to_dict() for u in diagnosis.unexplained],
         "runs": [{"name": r.name, "source": r.source, "sha256": r.sha256} for r in runs]}}
     return fit_effects([estimate(r, est) for r in runs], chosen, estimator=est,
                        provenance=provenance)

@@ -125,7 +125,7 @@ def write_report(d: Diagnosis, directory: str | Path) -> Path:
         "## Findings",
         "",
     ]
-    if not d.findings:
+    if not d.findings and not d.unexplained:
         lines.append("No candidate effect improved left-out runs by the required margin: "
                      "nothing found.")
     for f in d.findings:
@@ -133,6 +133,12 @@ def write_report(d: Diagnosis, directory: str | Path) -> Path:
         lines += [f"### {f.effect}", "", f"- parameters: {params}",
                   f"- held-out RMS with this effect alone: {_fmt(f.heldout_rms_dps)} °/s "
                   f"(gain {f.gain:.3f})", f"- evidence: {f.evidence}", ""]
+    for u in d.unexplained:
+        lines += [f"### unexplained: {u.variable} in [{u.where[0]:.4g}, {u.where[1]:.4g}]", "",
+                  "- structure no catalogued effect explains; its linear-spline correction is "
+                  "not deployable (kept out of the extended model and of --calibration)",
+                  f"- held-out RMS with the correction: {_fmt(u.heldout_rms_dps)} °/s "
+                  f"(gain {u.gain:.3f})", f"- evidence: {u.evidence}", ""]
     lines += ["", "## Effects tried on the baseline", "",
               "| effect | held-out gain | left-out runs improved | ΔBIC_eff |", "|---|---|---|---|"]
     for name, (ratio, improved, dbic) in d.selection.tried.items():

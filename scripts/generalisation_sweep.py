@@ -1,0 +1,240 @@
+"""Does the diagnosis generalise beyond the catalogue's exact forms? A seeded sweep.
+
+    .venv/bin/python scripts/generalisation_sweep.py [--quick] [--json OUT]
+
+Per case (what is injected) × condition (sample rate, temperature readout, number
+of runs) × seed, one device of the independent generator
+(:func:`gyrotherm.analysis._synth_variants.variant_runs`: :func:`synth_runs` plus
+the off-catalogue shapes), 6000-s runs; :func:`diagnose` (no simulator replay) is
+not told what was injected. Cases: nothing; each catalogued effect in the
+generator's own form (which already differs from the catalogue's: two-node
+thermal network, smoothed play-operator hysteresis); a hysteresis whose branches
+switch linearly over 3–6 °C (stop operator); a warm-up of two exponentials; a
+logistic warm-up; a smooth bias step at 30 °C (off-catalogue).
+
+Scoring against the injected truth:
+
+* **found**: every expected catalogued name is reported (wide hysteresis →
+  ``hysteresis``; the two warm-ups → ``warmup`` *or* an ``unexplained`` finding
+  on ``time_since_power_on_s``: the catalogue's single exponential is not their
+  shape, so naming the structure unexplained in time is a right answer, counted
+  in the "as unexplained" column); for the bias step, an ``unexplained`` finding
+  on ``temperature_c`` whose ``where`` brackets 30 °C;
+* **missed**: an expected name (or its alternative) is absent;
+* **false alarms**: any other reported name, ``unexplained`` ones included,
+  except an unexplained finding in time next to a found ``warmup`` for the
+  off-catalogue warm-ups (what the single exponential leaves of them is real),
+  listed as "unexplained (allowed)";
+* **parameter error**: |estimate / truth − 1| of each found effect's checked
+  parameter (the hidden-effect tests' list); for the wide hysteresis the
+  amplitude, for the warm-ups the amplitude at power-on (A₁ + A₂; A/(1 + e^(−t½/s))).
+
+The seeds (1, 2) and conditions were fixed before any result was seen.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import subprocess
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gyrotherm.analysis import SynthConfig, diagnose
+from gyrotherm.analysis._synth_variants import VariantTruth, variant_runs
+
+SEEDS = (1, 2)
+DURATION_S = 6000.0
+STEP_AT_C = 30.0
+CHECKED = {
+    "thermal_lag": "tau_s", "hysteresis": "amplitude_dps", "warmup": "amplitude_dps",
+    "cubic": "coefficient_dps_per_c3", "gradient_quadratic": "coefficient_dps_per_c2",
+    "drift": "slope_dps_per_h",
+}
+
+
+@dataclass(frozen=True)
+class Case:
+    name: str
+    effects: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    shapes: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    expected: tuple[str, ...] = ()
+    """Expected names: catalogued effects, or ``unexplained:<variable>``."""
+    allowed_unexplained: tuple[str, ...] = ()
+    """Variables whose unexplained finding also counts as finding the expected names."""
+
+
+@dataclass(frozen=True)
+class Condition:
+    name: str
+    rate_hz: float
+    lsb_c: float
+    period_s: float
+    n_runs: int
+
+
+CASES = (
+    Case("none"),
+    *(Case(e, effects={e: {}}, expected=(e,)) for e in CHECKED),
+    Case("wide_hysteresis", shapes={"wide_hysteresis": {}}, expected=("hysteresis",)),
+    Case("two_exp_warmup", shapes={"two_exp_warmup": {}}, expected=("warmup",),
+         allowed_unexplained=("time_since_power_on_s",)),
+    Case("logistic_warmup", shapes={"logistic_warmup": {}}, expected=("warmup",),
+         allowed_unexplained=("time_since_power_on_s",)),
+    Case("bias_step", shapes={"bias_step": {"at_c": STEP_AT_C}},
+         expected=("unexplained:temperature_c",)),
+)
+CONDITIONS = (
+    Condition("10 Hz, 0.125 °C / 1.28 s, 4 runs", 10.0, 0.125, 1.28, 4),
+    Condition("200 Hz, 0.0625 °C / 0.1 s, 4 runs", 200.0, 0.0625, 0.1, 4),
+    Condition("50 Hz, 0.5 °C / 1.0 s, 3 runs", 50.0, 0.5, 1.0, 3),
+    Condition("10 Hz, 1 °C / 1.3 s, 3 runs", 10.0, 1.0, 1.3, 3),
+)
+QUICK_CASES = ("none", "hysteresis", "wide_hysteresis", "two_exp_warmup", "bias_step")
+
+
+def _truth_param(case: Case, truth: VariantTruth, name: str) -> float | None:
+    if name in truth.base.effects:
+        if name == "thermal_lag":
+            return truth.base.die_tau_s
+        return float(truth.base.effects[name][CHECKED[name]])
+    s = truth.shapes
+    if name == "hysteresis" and "wide_hysteresis" in s:
+        return s["wide_hysteresis"]["amplitude_dps"]
+    if name == "warmup" and "two_exp_warmup" in s:
+        return s["two_exp_warmup"]["amplitude_1_dps"] + s["two_exp_warmup"]["amplitude_2_dps"]
+    if name == "warmup" and "logistic_warmup" in s:
+        p = s["logistic_warmup"]
+        return p["amplitude_dps"] / (1.0 + math.exp(-p["t_half_s"] / p["width_s"]))
+    return None
+
+
+def run_case(case: Case, cond: Condition, seed: int) -> dict[str, Any]:
+    """One diagnosis, scored against the injected truth (module docstring)."""
+    cfg = SynthConfig(duration_s=DURATION_S, rate_hz=cond.rate_hz, readout_lsb_c=cond.lsb_c,
+                      readout_period_s=cond.period_s, effects=case.effects)
+    runs, truth = variant_runs(cfg, shapes=case.shapes, n_runs=cond.n_runs, seed=seed)
+    start = time.perf_counter()
+    d = diagnose(runs, simulate=False)
+    elapsed = time.perf_counter() - start
+    reported = {f.effect: dict(f.params) for f in d.findings}
+    names = set(reported)
+    allowed = []
+    for u in d.unexplained:
+        lo, hi = u.where
+        if u.variable == "temperature_c" and "unexplained:temperature_c" in case.expected:
+            if lo <= STEP_AT_C <= hi:
+                names.add("unexplained:temperature_c")
+                continue
+        if u.variable in case.allowed_unexplained:
+            allowed.append(u.variable)
+            continue
+        names.add(f"unexplained:{u.variable}[{lo:.3g}, {hi:.3g}]")
+    expected = set(case.expected)
+    as_unexplained = []
+    if allowed and not expected & names:  # the warm-up named as unexplained in time
+        as_unexplained = sorted(expected)
+        names |= expected
+        allowed = []
+    errors = {}
+    for name in sorted(expected & set(reported)):
+        true = _truth_param(case, truth, name)
+        if true:
+            errors[name] = abs(reported[name][CHECKED[name]] / true - 1.0)
+    return {
+        "case": case.name, "condition": cond.name, "seed": seed,
+        "found": sorted(expected & names), "missed": sorted(expected - names),
+        "false_alarms": sorted(names - expected), "allowed_unexplained": allowed,
+        "found_as_unexplained": as_unexplained,
+        "parameter_errors": errors,
+        "unresolved_lag": any("thermal_lag not reported" in n for n in d.notes),
+        "gain": d.gain, "diagnosis_s": elapsed,
+    }
+
+
+def _summary(rows: Sequence[dict[str, Any]], key: str, labels: Sequence[str]) -> list[str]:
+    out = [f"| {key} | found | as unexplained | missed | false alarms | median param. error "
+           "| max param. error |", "|---|---|---|---|---|---|---|"]
+    for label in labels:
+        sel = [r for r in rows if r[key] == label]
+        if not sel:
+            continue
+        found = sum(len(r["found"]) for r in sel)
+        expected = found + sum(len(r["missed"]) for r in sel)
+        alarms = [a for r in sel for a in r["false_alarms"]]
+        allowed = [a for r in sel for a in r["allowed_unexplained"]]
+        errs = [e for r in sel for e in r["parameter_errors"].values()]
+        med = f"{100 * float(np.median(errs)):.0f} %" if errs else "—"
+        top = f"{100 * max(errs):.0f} %" if errs else "—"
+        alarm_text = f"{len(alarms)}" + (f" ({', '.join(sorted(set(alarms)))})" if alarms else "")
+        if allowed:
+            alarm_text += f"; unexplained (allowed) ×{len(allowed)}"
+        unexpl = sum(len(r["found_as_unexplained"]) for r in sel)
+        out.append(f"| {label} | {found}/{expected} | {unexpl} | {expected - found} | "
+                   f"{alarm_text} | "
+                   f"{med} | {top} |")
+    return out
+
+
+def commit() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, check=True, cwd=Path(__file__).parent).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def sweep(*, quick: bool = False) -> list[dict[str, Any]]:
+    cases = [c for c in CASES if c.name in QUICK_CASES] if quick else list(CASES)
+    conds = CONDITIONS[::3] if quick else CONDITIONS
+    seeds = SEEDS[:1] if quick else SEEDS
+    rows = []
+    for cond in conds:
+        for case in cases:
+            for seed in seeds:
+                rows.append(run_case(case, cond, seed))
+                r = rows[-1]
+                print(f"generalisation_sweep: {cond.name} | {case.name} | seed {seed}: found "
+                      f"{r['found']}, missed {r['missed']}, false alarms {r['false_alarms']}",
+                      file=sys.stderr, flush=True)
+    return rows
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
+    p.add_argument("--quick", action="store_true",
+                   help="5 cases × 2 conditions × 1 seed instead of 11 × 4 × 2")
+    p.add_argument("--json", metavar="OUT", help="also write the rows as JSON here")
+    args = p.parse_args(argv)
+    start = time.perf_counter()
+    rows = sweep(quick=args.quick)
+    elapsed = time.perf_counter() - start
+    cmd = "scripts/generalisation_sweep.py" + (" --quick" if args.quick else "")
+    print(f"`.venv/bin/python {cmd}` at commit {commit()}, seeds "
+          f"{', '.join(str(s) for s in sorted({r['seed'] for r in rows}))}, "
+          f"{DURATION_S:g}-s runs, {len(rows)} diagnoses, {elapsed:.0f} s")
+    print()
+    print("\n".join(_summary(rows, "case", [c.name for c in CASES])))
+    print()
+    print("\n".join(_summary(rows, "condition", [c.name for c in CONDITIONS])))
+    lags = [r for r in rows if r["unresolved_lag"]]
+    print()
+    print(f"Lags left out as below the resolvable limit: {len(lags)} "
+          + "".join(f"\n- {r['case']} | {r['condition']} | seed {r['seed']}" for r in lags))
+    if args.json:
+        out = Path(args.json)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps({"commit": commit(), "elapsed_s": elapsed, "rows": rows},
+                                  indent=2) + "\n", encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

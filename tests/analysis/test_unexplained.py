@@ -1,0 +1,92 @@
+"""Unexplained residual structure: an off-catalogue effect (a smooth bias step at a
+temperature, from the independent generator's variants) is reported as
+``unexplained`` on temperature_c where the step is, not forced into a catalogued
+name; clean data and catalogued effects give no unexplained finding. Seeds fixed
+before any result was seen."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gyrotherm.analysis import Diagnosis, SynthConfig, diagnose
+from gyrotherm.analysis._diagnose import export_calibration
+from gyrotherm.analysis._synth_variants import variant_runs
+from gyrotherm.analysis._unexplained import hats, steepest_span
+from gyrotherm.codecs import Run
+
+CFG = SynthConfig(duration_s=6000.0, rate_hz=10.0)
+STEP_C = 30.0
+
+
+def test_hats_interpolate_linearly_and_hold_beyond_the_knots() -> None:
+    knots = np.array([0.0, 1.0, 2.0])
+    b = hats(np.array([-1.0, 0.5, 1.5, 3.0]), knots)
+    assert b == pytest.approx(np.array([[1, 0, 0], [0.5, 0.5, 0], [0, 0.5, 0.5], [0, 0, 1]]))
+    # partition of unity and linear reproduction (clipped to the knot range)
+    v = np.linspace(-0.5, 2.5, 31)
+    assert hats(v, knots).sum(axis=1) == pytest.approx(np.ones(31))
+    assert hats(v, knots) @ knots == pytest.approx(np.clip(v, 0.0, 2.0))
+
+
+def test_steepest_span_takes_the_neighbours_at_least_half_as_steep() -> None:
+    # slopes 0, 1, 0.6, 0: the steepest interval [1, 2] and its neighbour [2, 3]
+    span = steepest_span(np.arange(5.0), np.array([0.0, 0.0, 1.0, 1.6, 1.6]))
+    assert span == (1.0, 3.0)
+
+
+@pytest.fixture(scope="module")
+def step_runs() -> tuple[list[Run], dict[str, float], Diagnosis]:
+    runs, truth = variant_runs(CFG, shapes={"bias_step": {"at_c": STEP_C}}, n_runs=4, seed=11)
+    return runs, dict(truth.shapes["bias_step"]), diagnose(runs, simulate=False)
+
+
+def test_bias_step_is_unexplained_on_temperature_where_the_step_is(
+    step_runs: tuple[list[Run], dict[str, float], Diagnosis],
+) -> None:
+    _, step, d = step_runs
+    assert d.findings == ()  # no catalogued name forced onto it
+    (u,) = d.unexplained
+    data = d.to_dict()["findings"]
+    assert [f["effect"] for f in data] == ["unexplained"]
+    assert data[0]["params"]["variable"] == "temperature_c"
+    low, high = data[0]["params"]["where"]
+    assert low <= STEP_C <= high
+    assert high - low < 15.0  # a place, not the whole range (runs span ≥ 30 °C)
+    assert data[0]["gain"] > 1.1
+    # the correction rises (falls) across `where` as the injected step does
+    knots = np.array(u.knots)
+    values = np.array(u.correction_dps)
+    change = float(np.interp(high, knots, values) - np.interp(low, knots, values))
+    assert np.sign(change) == np.sign(step["amplitude_dps"])
+    assert 0.3 * abs(step["amplitude_dps"]) < abs(change) < 1.5 * abs(step["amplitude_dps"])
+
+
+def test_calibration_keeps_the_unexplained_correction_out_and_records_it(
+    step_runs: tuple[list[Run], dict[str, float], Diagnosis],
+) -> None:
+    runs, _, d = step_runs
+    cal = export_calibration(runs, d).calibration
+    assert cal.effect_names("x") == ()
+    (kept,) = cal.provenance["diagnosis"]["not_deployed"]
+    assert kept["effect"] == "unexplained"
+    assert kept["params"]["variable"] == "temperature_c"
+    assert kept["correction"]["deployable"] is False
+
+
+@pytest.mark.parametrize(("effects", "seed"), [
+    ({}, 3),
+    ({}, 104),
+    ({"hysteresis": {}}, 101),
+    ({"cubic": {}}, 207),
+    ({"warmup": {}}, 101),
+])
+def test_no_unexplained_finding_on_clean_data_or_catalogued_effects(
+    effects: dict[str, dict[str, float]], seed: int
+) -> None:
+    from dataclasses import replace
+
+    runs, _ = variant_runs(replace(CFG, effects=effects), n_runs=4, seed=seed)
+    d = diagnose(runs, simulate=False)
+    assert d.unexplained == ()
+    assert {f.effect for f in d.findings} == set(effects)
