@@ -19,8 +19,11 @@ Rate output (per axis, °/s), after IEEE Std 952-1997 (Allan variance terms):
 * output quantisation to ``rate_lsb_dps``.
 
 Optional, off by default (calibrated profiles, :mod:`._profiles`): a white-noise
-level per axis (``arw_by_axis_deg_per_rth`` overrides N on the axes it names) and
-narrow spectral lines (``lines``, :mod:`._lines`).
+level per axis (``arw_by_axis_deg_per_rth`` overrides N on the axes it names),
+narrow spectral lines (``lines``, :mod:`._lines`), and a per-run ΔT sensitivity:
+the true dT coefficient plus δ ~ N(0, ``dt_run_std_dps_per_c``) drawn per run and
+axis, bias += δ·ΔT (the coupling of the gradient to the bias changing from run to
+run, e.g. with mounting or the chamber's air flow; Tang et al. §5).
 """
 
 from __future__ import annotations
@@ -94,6 +97,7 @@ class GyroParams:
     bias: BiasTruth = field(default_factory=BiasTruth)
     arw_by_axis_deg_per_rth: Mapping[str, float] = field(default_factory=dict)
     lines: tuple[SpectralLine, ...] = ()
+    dt_run_std_dps_per_c: float = 0.0
 
     def arw_for(self, axis: str) -> float:
         """The white-noise level N (°/√h) of ``axis``."""
@@ -105,7 +109,7 @@ class GyroParams:
                 raise ConfigError(f"gyro.{name} must be > 0, got {getattr(self, name)!r}")
         for name in ("temperature_noise_c", "temperature_lsb_c", "arw_deg_per_rth",
                      "bias_instability_deg_per_h", "rrw_deg_per_h_per_rth",
-                     "switch_on_std_dps", "rate_lsb_dps"):
+                     "switch_on_std_dps", "rate_lsb_dps", "dt_run_std_dps_per_c"):
             if getattr(self, name) < 0:
                 raise ConfigError(f"gyro.{name} must be ≥ 0, got {getattr(self, name)!r}")
         for axis, arw in self.arw_by_axis_deg_per_rth.items():
@@ -123,7 +127,7 @@ class GyroParams:
         return replace(self, temperature_noise_c=0.0, temperature_lsb_c=0.0,
                        arw_deg_per_rth=0.0, bias_instability_deg_per_h=0.0,
                        rrw_deg_per_h_per_rth=0.0, switch_on_std_dps=0.0, rate_lsb_dps=0.0,
-                       arw_by_axis_deg_per_rth={}, lines=())
+                       arw_by_axis_deg_per_rth={}, lines=(), dt_run_std_dps_per_c=0.0)
 
 
 def _quantise(x: FloatArray, lsb: float) -> FloatArray:
@@ -169,6 +173,8 @@ def simulate(
         rrw_step = gyro.rrw_deg_per_h_per_rth / 3600 / 60 * np.sqrt(dt)
         rrw = np.cumsum(rng.standard_normal(n)) * rrw_step
         offset = rng.standard_normal() * gyro.switch_on_std_dps
+        if gyro.dt_run_std_dps_per_c > 0:  # drawn only when on: default streams unchanged
+            bias = bias + rng.standard_normal() * gyro.dt_run_std_dps_per_c * grad
         out = bias + offset + white + bi + rrw
         if gyro.lines:  # drawn last: runs without lines keep their random stream
             out = out + line_signal_dps(gyro.lines, axis, t, rng)
