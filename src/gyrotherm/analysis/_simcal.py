@@ -52,7 +52,8 @@ from gyrotherm.analysis._simcal_tang import (
     t_star_raw,
     tang_statistics,
 )
-from gyrotherm.sim import BiasTruth, ChamberModel, GyroParams
+from gyrotherm.sim import ChamberModel, GyroParams
+from gyrotherm.sim._profiles import scaled_dt
 
 FIT_ROWS: tuple[int, ...] = (5, 20, 40, 60)
 HELD_OUT_ROWS: tuple[int, ...] = (10, 30, 50)
@@ -83,13 +84,6 @@ class TangFit:
     dt_run_std_dps_per_c: float
     arw_deg_per_rth: float
     fit_scores: tuple[Score, ...]
-
-
-def scaled_dt(gyro: GyroParams, k: float) -> GyroParams:
-    """``gyro`` with its true ΔT terms (dT, T*dT) multiplied by k on every axis."""
-    coeffs = {a: {n: (c * k if "dT" in n else c) for n, c in terms.items()}
-              for a, terms in gyro.bias.coefficients.items()}
-    return replace(gyro, bias=BiasTruth(model=gyro.bias.model, coefficients=coeffs))
 
 
 def default_dt_ratio(gyro: GyroParams) -> float:

@@ -69,14 +69,15 @@ class SimProfile:
     sessions: Mapping[str, GyroParams] = field(default_factory=dict)
 
 
-def _scaled_dt(gyro: GyroParams, k: float) -> GyroParams:
+def scaled_dt(gyro: GyroParams, k: float) -> GyroParams:
+    """``gyro`` with its true ΔT terms (dT, T*dT) multiplied by k on every axis."""
     coeffs = {a: {n: (c * k if "dT" in n else c) for n, c in terms.items()}
               for a, terms in gyro.bias.coefficients.items()}
     return replace(gyro, bias=BiasTruth(model=gyro.bias.model, coefficients=coeffs))
 
 
 def _tang2013() -> SimProfile:
-    gyro = replace(_scaled_dt(GyroParams(), TANG_DT_SCALE),
+    gyro = replace(scaled_dt(GyroParams(), TANG_DT_SCALE),
                    bias_instability_deg_per_h=TANG_BI_DEG_PER_H, bi_tau_s=TANG_BI_TAU_S,
                    arw_deg_per_rth=TANG_ARW_DEG_PER_RTH)
     chamber = ChamberModel(bow_c=TANG_BOW_C, bow_rate_exponent=TANG_BOW_RATE_EXPONENT,
