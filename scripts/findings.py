@@ -574,7 +574,8 @@ def main() -> None:
         f"{hot_line:.2f} Hz line (below): a sinusoid of frequency f₀ peaks in Allan "
         f"deviation at τ ≈ 0.371/f₀ = {0.371 / hot_line:.2f} s (IEEE Std 952-1997). "
         "So no white-noise level describes either plateau; a per-run white level can match "
-        "the std, not the spectrum.",
+        "the std, not the spectrum. §7 adds the lines and a per-axis level per session "
+        "(profile `bmi270`), fitted on the first halves and scored on the second.",
         "",
         "Spectral lines: the strongest PSD bin of each band, listed if it is at least "
         f"{LINE_PROMINENCE:g}× the band's median PSD in the whole plateau and in each half, "
@@ -695,7 +696,9 @@ def main() -> None:
         f"and {t1['corr_a3_a4']:.3f} in the paper's raw units (T* ≈ {t1['t_star']:.0f}); "
         f"correlated bias noise decorrelates them ({t1['sim2_corr_a3_a4']:.2f}). Per-run "
         "switch-on offsets only move a5 in per-run fits; in a pooled fit without per-run "
-        "offsets they would leak into every coefficient (`diagnose` fits one offset per run).",
+        "offsets they would leak into every coefficient (`diagnose` fits one offset per run). "
+        "§7 fits this slow noise and, as the alternative, a per-run ΔT sensitivity on "
+        "Table 1's rows 5/20/40/60 min and scores both on the other rows and Table 2.",
         "",
         "## 3. Table 2 and Fig. 6",
         "",
@@ -707,13 +710,14 @@ def main() -> None:
         f"(RMS {t2['t2_t2 5 min']:.3f} °/s) while in the paper it is only 39 % worse than "
         "the T/ΔT model. The simulator's default ΔT coefficient (0.05 °/s per °C on x) "
         "makes a fast ramp's gradient dominate the bias; Tang's gyro responds far less "
-        "to ΔT. Calibrating the simulator's ΔT terms to the paper's Table 2 ratios is the "
-        "correction this comparison asks for. Fig. 6: the simulator's chamber bow "
+        "to ΔT. §7 calibrates the simulator's ΔT terms (profile `tang2013`: fitted on "
+        "part of Table 1 and Table 2, scored on the rest). Fig. 6: the simulator's chamber bow "
         "(2.2 °C) gives the same ramp residual "
         f"for both ramps ({t2['fig6_30_res']:.2f} and {t2['fig6_60_res']:.2f} °C); "
         "measured, the faster ramp deviates more (0.84 vs 0.57 °C). A bow that grows "
         "with ramp rate (≈ rate^0.56 from the two points) would match both; the "
-        "diagnosis cannot test it without chamber logs.",
+        "diagnosis cannot test it without chamber logs. §7's `tang2013` profile has one, "
+        "fitted through both points (in-sample: no third point to score it on).",
         "",
         "## 4. The diagnosis on data with known answers",
         "",

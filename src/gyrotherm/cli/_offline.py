@@ -38,16 +38,20 @@ from gyrotherm.estimators import EstimatorConfig
 # gyrotherm.sim (and scipy.signal with it) is imported inside the commands that
 # simulate: building the parser must not load the simulator (``gyrotherm run`` builds
 # it too; tests/cli/test_footprint.py).
+PROFILE_NAMES = ("default", "tang2013", "bmi270")  # = gyrotherm.sim._profiles.PROFILE_NAMES
 
 
 def cmd_sim_chamber(args: argparse.Namespace) -> int:
     from gyrotherm.sim import PAPER_HEATING_MIN, chamber_runs
+    from gyrotherm.sim._profiles import get_profile
 
+    profile = get_profile(args.profile)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     heating_min = list(PAPER_HEATING_MIN) if args.heating_min is None else args.heating_min
     runs = chamber_runs(heating_min, seed=args.seed, rate_hz=args.rate_hz,
                         hold_s=args.hold_s, validation=args.validation,
+                        gyro=profile.gyro, chamber=profile.chamber,
                         progress=progress("simulating", quiet=args.quiet))
     written = []
     for run in runs:
@@ -250,14 +254,18 @@ def cmd_paper(args: argparse.Namespace) -> int:
 def paper_tables(args: argparse.Namespace) -> tuple[Run, Calibration]:
     """Print the paper's tables (see :func:`cmd_paper`); return the validation run and
     the eq. 12 (paper-average) calibration fitted on the heating runs."""
-    from gyrotherm.sim import PAPER_HEATING_MIN, GyroParams, chamber_runs
+    from gyrotherm.sim import PAPER_HEATING_MIN, chamber_runs
+    from gyrotherm.sim._profiles import get_profile
 
-    gyro = GyroParams()
+    profile = get_profile(getattr(args, "profile", "default"))
+    gyro, chamber = profile.gyro, profile.chamber
     est = EstimatorConfig(tau_s=gyro.tau_s)
     quiet = args.quiet
     runs = chamber_runs(PAPER_HEATING_MIN, seed=args.seed, rate_hz=args.rate_hz,
+                        gyro=gyro, chamber=chamber,
                         progress=progress("simulating heating runs", quiet=quiet))
-    valid = chamber_runs([60], seed=args.seed, rate_hz=args.rate_hz, validation=True)[0]
+    valid = chamber_runs([60], seed=args.seed, rate_hz=args.rate_hz, validation=True,
+                         gyro=gyro, chamber=chamber)[0]
     if args.out:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
@@ -318,6 +326,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     ch.add_argument("--validation", action="store_true",
                     help="name runs valid-… and draw seeds apart from fitting runs")
     conv.add_json_option(ch, what="the files written (path, rows, duration_s)")
+    ch.add_argument("--profile", choices=PROFILE_NAMES, default="default",
+                    help="simulator profile: default, or calibrated to measurements "
+                    "(tang2013, bmi270; docs/findings.md §7)")
     ch.set_defaults(func=cmd_sim_chamber)
     from gyrotherm.cli import _stream as _stream_cli
 
@@ -367,4 +378,6 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="also write the simulated runs to this DIRECTORY (created; "
                    "default: not written)")
     conv.add_json_option(p, what="Tables 1 and 2")
+    p.add_argument("--profile", choices=PROFILE_NAMES, default="default",
+                   help="simulator profile (default, tang2013, bmi270; docs/findings.md §7)")
     p.set_defaults(func=cmd_paper)

@@ -9,7 +9,9 @@ adds what a real chamber does (Tang et al. §5, Fig. 6):
 * ramp non-linearity: on each ramp a bow ``bow_c · sin(π·u)`` (u = fraction of
   the ramp done); a half-sine about its linear fit leaves residuals of
   0.31·|bow_c| standard deviation, so bow_c ≈ 1.9–2.7 °C reproduces the
-  0.57–0.84 °C of Fig. 6;
+  0.57–0.84 °C of Fig. 6; with ``bow_rate_exponent`` p ≠ 0 (default 0: off) the bow
+  grows with the ramp rate r = |ΔT_set|/Δt (°C/min) as
+  ``bow_c · (r / bow_reference_rate_c_per_min)^p``;
 * control noise: an Ornstein–Uhlenbeck process of standard deviation
   ``noise_c`` and correlation time ``noise_tau_s`` (stability ±0.2 °C ≈ 2σ).
 """
@@ -45,6 +47,20 @@ class ChamberModel:
     bow_c: float = 2.2
     noise_c: float = 0.1
     noise_tau_s: float = 20.0
+    bow_rate_exponent: float = 0.0
+    bow_reference_rate_c_per_min: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not self.bow_reference_rate_c_per_min > 0:
+            raise ConfigError("chamber: bow_reference_rate_c_per_min must be > 0, got "
+                              f"{self.bow_reference_rate_c_per_min!r}")
+
+    def bow_for_rate_c(self, rate_c_per_min: float) -> float:
+        """Bow amplitude (°C) of a ramp at ``rate_c_per_min`` (°C/min, sign ignored)."""
+        if self.bow_rate_exponent == 0.0:
+            return self.bow_c
+        ratio = abs(rate_c_per_min) / self.bow_reference_rate_c_per_min
+        return float(self.bow_c * ratio**self.bow_rate_exponent)
 
 
 @dataclass(frozen=True)
@@ -94,7 +110,8 @@ class ChamberProfile:
             if a.temperature_c != b.temperature_c:
                 on = (time_s >= a.time_s) & (time_s <= b.time_s)
                 u = (time_s[on] - a.time_s) / (b.time_s - a.time_s)
-                target[on] += model.bow_c * np.sin(np.pi * u)
+                rate_c_per_min = (b.temperature_c - a.temperature_c) / (b.time_s - a.time_s) * 60
+                target[on] += model.bow_for_rate_c(rate_c_per_min) * np.sin(np.pi * u)
         air = first_order(target, dt, model.lag_s, target[0])
         if model.noise_c > 0:
             air += ou_process(len(time_s), dt, model.noise_c, model.noise_tau_s, rng)

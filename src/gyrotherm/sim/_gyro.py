@@ -17,6 +17,13 @@ Rate output (per axis, °/s), after IEEE Std 952-1997 (Allan variance terms):
 * rate random walk K (°/h/√h): random walk with increments K/3600/60·√dt;
 * a per-run switch-on offset ~ N(0, ``switch_on_std_dps``) (repeatability);
 * output quantisation to ``rate_lsb_dps``.
+
+Optional, off by default (calibrated profiles, :mod:`._profiles`): a white-noise
+level per axis (``arw_by_axis_deg_per_rth`` overrides N on the axes it names),
+narrow spectral lines (``lines``, :mod:`._lines`), and a per-run ΔT sensitivity:
+the true dT coefficient plus δ ~ N(0, ``dt_run_std_dps_per_c``) drawn per run and
+axis, bias += δ·ΔT (the coupling of the gradient to the bias changing from run to
+run, e.g. with mounting or the chamber's air flow; Tang et al. §5).
 """
 
 from __future__ import annotations
@@ -32,6 +39,7 @@ from gyrotherm.codecs import Run
 from gyrotherm.codecs._runfile import TEMPERATURE_PERIOD_KEY
 from gyrotherm.compensation import ModelSpec, Term, get_model
 from gyrotherm.sim._chamber import ChamberModel, ChamberProfile, first_order, ou_process
+from gyrotherm.sim._lines import SpectralLine, line_signal_dps
 
 FloatArray = NDArray[np.float64]
 
@@ -87,6 +95,13 @@ class GyroParams:
     rate_lsb_dps: float = 0.002
     axes: tuple[str, ...] = ("x", "y", "z")
     bias: BiasTruth = field(default_factory=BiasTruth)
+    arw_by_axis_deg_per_rth: Mapping[str, float] = field(default_factory=dict)
+    lines: tuple[SpectralLine, ...] = ()
+    dt_run_std_dps_per_c: float = 0.0
+
+    def arw_for(self, axis: str) -> float:
+        """The white-noise level N (°/√h) of ``axis``."""
+        return self.arw_by_axis_deg_per_rth.get(axis, self.arw_deg_per_rth)
 
     def __post_init__(self) -> None:
         for name in ("tau_s", "temperature_period_s"):
@@ -94,9 +109,13 @@ class GyroParams:
                 raise ConfigError(f"gyro.{name} must be > 0, got {getattr(self, name)!r}")
         for name in ("temperature_noise_c", "temperature_lsb_c", "arw_deg_per_rth",
                      "bias_instability_deg_per_h", "rrw_deg_per_h_per_rth",
-                     "switch_on_std_dps", "rate_lsb_dps"):
+                     "switch_on_std_dps", "rate_lsb_dps", "dt_run_std_dps_per_c"):
             if getattr(self, name) < 0:
                 raise ConfigError(f"gyro.{name} must be ≥ 0, got {getattr(self, name)!r}")
+        for axis, arw in self.arw_by_axis_deg_per_rth.items():
+            if not arw >= 0:
+                raise ConfigError(f"gyro.arw_by_axis_deg_per_rth[{axis!r}] must be ≥ 0, "
+                                  f"got {arw!r}")
         missing = set(self.axes) - set(self.bias.coefficients)
         if missing:
             raise ConfigError(f"gyro: no true bias for axes {sorted(missing)}")
@@ -107,7 +126,8 @@ class GyroParams:
 
         return replace(self, temperature_noise_c=0.0, temperature_lsb_c=0.0,
                        arw_deg_per_rth=0.0, bias_instability_deg_per_h=0.0,
-                       rrw_deg_per_h_per_rth=0.0, switch_on_std_dps=0.0, rate_lsb_dps=0.0)
+                       rrw_deg_per_h_per_rth=0.0, switch_on_std_dps=0.0, rate_lsb_dps=0.0,
+                       arw_by_axis_deg_per_rth={}, lines=(), dt_run_std_dps_per_c=0.0)
 
 
 def _quantise(x: FloatArray, lsb: float) -> FloatArray:
@@ -147,13 +167,18 @@ def simulate(
     truth: dict[str, FloatArray] = {}
     for axis in gyro.axes:
         bias = gyro.bias.bias_dps(axis, die, grad)
-        white = rng.standard_normal(n) * gyro.arw_deg_per_rth / 60.0 * np.sqrt(rate_hz)
+        white = rng.standard_normal(n) * gyro.arw_for(axis) / 60.0 * np.sqrt(rate_hz)
         bi = (ou_process(n, dt, gyro.bias_instability_deg_per_h / 3600.0 / 0.62,
                          gyro.bi_tau_s, rng) if gyro.bias_instability_deg_per_h > 0 else 0.0)
         rrw_step = gyro.rrw_deg_per_h_per_rth / 3600 / 60 * np.sqrt(dt)
         rrw = np.cumsum(rng.standard_normal(n)) * rrw_step
         offset = rng.standard_normal() * gyro.switch_on_std_dps
-        rates[axis] = _quantise(bias + offset + white + bi + rrw, gyro.rate_lsb_dps)
+        if gyro.dt_run_std_dps_per_c > 0:  # drawn only when on: default streams unchanged
+            bias = bias + rng.standard_normal() * gyro.dt_run_std_dps_per_c * grad
+        out = bias + offset + white + bi + rrw
+        if gyro.lines:  # drawn last: runs without lines keep their random stream
+            out = out + line_signal_dps(gyro.lines, axis, t, rng)
+        rates[axis] = _quantise(out, gyro.rate_lsb_dps)
         truth[axis] = bias
     meta = {"seed": str(seed), "rate_hz": f"{rate_hz:g}", "tau_s": f"{gyro.tau_s:g}",
             TEMPERATURE_PERIOD_KEY: repr(float(gyro.temperature_period_s)), **(metadata or {})}
