@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from gyrotherm._errors import CalibrationError, ConfigError
-from gyrotherm.cli._common import load_run, load_runs
+from gyrotherm.cli._inputs import add_input_options, load_inputs, spec_from_args
 from gyrotherm.codecs import Run
 from gyrotherm.compensation import ErrorMetrics, features, load_calibration
 from gyrotherm.compensation._autopilot import (
@@ -35,11 +35,13 @@ from gyrotherm.compensation._autopilot import (
 )
 from gyrotherm.compensation._calibration import Calibration
 from gyrotherm.compensation._rest import rest_of_run
+from gyrotherm.readers import InputSpec, read_runs
 
 
-def provenance_runs(cal: Calibration, where: str) -> list[Run]:
+def provenance_runs(cal: Calibration, where: str, spec: InputSpec | None = None) -> list[Run]:
     """The calibration's fitting runs, re-read (a relative path from the working directory,
-    else from the calibration's directory); CalibrationError when one is missing or its
+    else from the calibration's directory) with the input options ``spec``; in a log of
+    several IMUs, the run of the entry's name. CalibrationError when one is missing or its
     content changed (sha256)."""
     entries = cal.provenance.get("runs")
     if not isinstance(entries, list) or not entries:
@@ -53,7 +55,12 @@ def provenance_runs(cal: Calibration, where: str) -> list[Run]:
         if not path:
             raise CalibrationError(f"{where}: fitting run {source!r} is missing; give the "
                                    "runs on the command line")
-        run = load_run(path)
+        found = read_runs(path, spec=spec or InputSpec())
+        named = [r for r in found if r.name == e.get("name")]
+        if not named and len(found) != 1:
+            raise CalibrationError(f"{where}: fitting run {e.get('name')!r} is not in "
+                                   f"{source!r} (it holds {[r.name for r in found]})")
+        run = named[0] if named else found[0]
         device = cal.provenance.get("device_id")
         if device is not None and run.metadata.get("device_id", device) != device:
             raise CalibrationError(f"{where}: fitting run {source!r} is device "
@@ -63,6 +70,19 @@ def provenance_runs(cal: Calibration, where: str) -> list[Run]:
                                    f"(sha256 {run.sha256[:12]}… ≠ {str(e.get('sha256'))[:12]}…)")
         out.append(run)
     return out
+
+
+def _of_device(cal: Calibration, runs: list[Run], what: str) -> list[Run]:
+    """The runs of the calibration's device (provenance ``device_id``), from logs that
+    may hold several IMUs; runs that name no device are kept."""
+    device = cal.provenance.get("device_id")
+    if device is None:
+        return runs
+    mine = [r for r in runs if r.metadata.get("device_id", device) == device]
+    if not mine:
+        raise CalibrationError(f"{what}: no run of device {device!r} (found devices "
+                               f"{sorted({r.metadata.get('device_id', '') for r in runs})})")
+    return mine
 
 
 def _rest_rows(run: Run, mode: str) -> np.ndarray:
@@ -117,11 +137,12 @@ def cmd_export(args: argparse.Namespace) -> int:
     cal = load_calibration(args.calibration)
     where = str(args.calibration)
     device = _device_id(args, cal) if args.px4 else 0
-    fit_runs = load_runs(args.runs, quiet=args.quiet) if args.runs \
-        else provenance_runs(cal, where)
+    fit_runs = _of_device(cal, load_inputs(args), "RUNS") if args.runs \
+        else provenance_runs(cal, where, spec_from_args(args))
     cubic = fit_cubic(fit_runs, args.rest)
     in_sample = not args.validate
-    valid = fit_runs if in_sample else load_runs(args.validate, quiet=args.quiet)
+    valid = fit_runs if in_sample else _of_device(cal, load_inputs(args, args.validate),
+                                                  "--validate")
     errors = validation_errors(cal, cubic, valid, args.rest)
     written: dict[str, Any] = {}
     if args.px4:
@@ -194,4 +215,5 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     e.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",
                    help="write the parameters and errors as JSON to FILE (stdout when no FILE, "
                    "instead of the table)")
+    add_input_options(e)
     e.set_defaults(func=cmd_export)
