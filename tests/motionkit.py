@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from pathlib import Path
+
 import numpy as np
 
 from gyrotherm.codecs import Run
@@ -31,3 +34,22 @@ def with_rotations(run: Run, intervals: tuple[tuple[float, float], ...], *,
     return Run(name=run.name + "-moving", time_s=t, temperature_c=run.temperature_c,
                rates_dps=rates, chamber_c=run.chamber_c, true_bias_dps=run.true_bias_dps,
                metadata=run.metadata, extra=extra)
+
+
+def truth_rms(cal_path: Path, runs: Sequence[Run], turns_s: Sequence[tuple[float, float]],
+              *, guard_s: float = 2.0) -> float:
+    """Mean over axes and runs of RMS(bias removed − true bias), °/s, on the rows at
+    rest (each turn ± ``guard_s`` left out), with the calibration's own estimator."""
+    from dataclasses import replace
+
+    from gyrotherm.compensation import features, load_calibration, score
+
+    cal = load_calibration(cal_path)
+    vals = []
+    for run in runs:
+        still = np.ones(len(run), dtype=bool)
+        for a, b in turns_s:
+            still &= ~((run.time_s >= a - guard_s) & (run.time_s < b + guard_s))
+        f = replace(features(run, cal.estimator), rest=still)
+        vals += [s.truth.rms_dps for s in score(cal, f) if s.truth is not None]
+    return float(np.mean(vals))

@@ -11,9 +11,8 @@ import pytest
 
 from gyrotherm.cli import main
 from gyrotherm.codecs import Run, read_run, write_run
-from gyrotherm.compensation import features, load_calibration, score
 from gyrotherm.sim import BiasTruth, GyroParams, chamber_runs
-from motionkit import with_rotations
+from motionkit import truth_rms, with_rotations
 
 TURNS_S = ((700.0, 730.0), (1400.0, 1460.0))
 #: Device b's true bias: device a's (the simulator default) with other coefficients.
@@ -40,17 +39,7 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, list[Path]]:
 
 
 def _truth_rms(cal_path: Path, runs: list[Path]) -> float:
-    """Mean RMS of (fitted − true) bias over axes and rows at rest of ``runs``."""
-    cal = load_calibration(cal_path)
-    vals = []
-    for p in runs:
-        run = read_run(p)
-        still = np.ones(len(run), dtype=bool)
-        for a, b in TURNS_S:
-            still &= ~((run.time_s >= a - 2) & (run.time_s < b + 2))
-        f = replace(features(run, cal.estimator), rest=still)
-        vals += [s.truth.rms_dps for s in score(cal, f) if s.truth is not None]
-    return float(np.mean(vals))
+    return truth_rms(cal_path, [read_run(p) for p in runs], TURNS_S)
 
 
 def test_two_devices_two_calibrations_each_its_own_truth(

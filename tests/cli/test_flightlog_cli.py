@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import struct
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -19,9 +18,8 @@ import pytest
 
 from gyrotherm.cli import main
 from gyrotherm.codecs import Run
-from gyrotherm.compensation import features, load_calibration, score
 from gyrotherm.sim import BiasTruth, GyroParams, chamber_runs
-from motionkit import with_rotations
+from motionkit import truth_rms, with_rotations
 from ulogkit import ACCEL_FIELDS, GYRO_FIELDS, _msg, _pack, header_and_definitions
 
 DEVICE_IDS = {"a": 263178, "b": 2424842}
@@ -71,16 +69,7 @@ def flights(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[Path], dict[
 
 
 def _truth_rms(cal_path: Path, runs: list[Run]) -> float:
-    """RMS of (bias removed − true bias) over the rest rows (turns ± 2 s left out)."""
-    cal = load_calibration(cal_path)
-    vals = []
-    for run in runs:
-        still = np.ones(len(run), dtype=bool)
-        for a, b in TURNS_S:
-            still &= ~((run.time_s >= a - 2) & (run.time_s < b + 2))
-        f = replace(features(run, cal.estimator), rest=still)
-        vals += [s.truth.rms_dps for s in score(cal, f) if s.truth is not None]
-    return float(np.mean(vals))
+    return truth_rms(cal_path, runs, TURNS_S)
 
 
 def test_two_imus_in_ulogs_fit_evaluate_export(
