@@ -24,6 +24,7 @@ def build_parser() -> argparse.ArgumentParser:
     _diagnose.register(sub)
     _demo.register(sub)
     sub.add_parser("listen", help="live view of a sensor's Zenoh stream (see: listen --help)")
+    sub.add_parser("record", help="record to MCAP (ROS 2 Imu) / serve Foxglove (record --help)")
     return parser
 
 
@@ -33,6 +34,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         from gyrotherm.client import listen_main
 
         return listen_main(args_list[1:])
+    if args_list[:1] == ["record"]:  # client side, own parser; mcap/foxglove imported lazily
+        from gyrotherm.client._record import record_main
+
+        return record_main(args_list[1:])
     parser = build_parser()
     args = parser.parse_args(args_list)
     try:
