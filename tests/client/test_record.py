@@ -6,8 +6,6 @@ from __future__ import annotations
 import json
 import math
 import threading
-import uuid
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -21,43 +19,11 @@ from gyrotherm.client._record import record_main
 from gyrotherm.client._ros import imu_cdr, residual_variance_dps2, stamp, temperature_cdr
 from gyrotherm.codecs import FrameEncoder, Run
 from gyrotherm.codecs._wire import RateMessage, StateMessage
-from gyrotherm.compensation import Calibration, features, fit
-from gyrotherm.daemon import Daemon, parse_config
-from gyrotherm.estimators import EstimatorConfig
-from gyrotherm.sim import GyroParams, chamber_runs
-from streamkit import free_port, run_frames
+from gyrotherm.compensation import Calibration
+from streamkit import run_frames
 
 TIMEOUT_S = 20.0
 DEG = math.pi / 180
-
-
-@pytest.fixture(scope="module")
-def runs() -> list[Run]:
-    return chamber_runs([5, 20], seed=8, rate_hz=1.0, hold_s=600)
-
-
-@pytest.fixture(scope="module")
-def calibration(runs: list[Run]) -> Calibration:
-    est = EstimatorConfig(tau_s=GyroParams().tau_s)
-    return fit([features(r, est) for r in runs], "paper", estimator=est)
-
-
-@pytest.fixture()
-def daemon(tmp_path: Path, calibration: Calibration) -> Iterator[tuple[str, int]]:
-    channel, port = f"rec-{uuid.uuid4().hex[:8]}", free_port()
-    cfg = parse_config({
-        "vehicle": "testcar", "sensor": "imu0",
-        "calibration": str(calibration.save(tmp_path / "cal.json")), "health_period_s": 0.2,
-        "can": {"interface": "virtual", "channel": channel, "recv_timeout_s": 0.05},
-        "zenoh": {"listen": [f"tcp/127.0.0.1:{port}"]},
-    }, base_dir=tmp_path)  # fmt: skip
-    d = Daemon(cfg)
-    thread = threading.Thread(target=d.run, daemon=True)
-    thread.start()
-    assert d.ready.wait(TIMEOUT_S)
-    yield channel, port
-    d.stop()
-    thread.join(TIMEOUT_S)
 
 
 class _Rec:
@@ -113,7 +79,8 @@ def test_record_end_to_end(daemon: tuple[str, int], runs: list[Run], tmp_path: P
     ready, result = threading.Event(), {}
     argv = ["--vehicle", "testcar", "--sensor", "imu0", "--connect", f"tcp/127.0.0.1:{port}",
             "--mcap", str(out), "--count", str(len(run)), "--frame-id", "gyro_link", "--json"]
-    rec = threading.Thread(target=lambda: result.update(code=record_main(argv, ready=ready)))
+    rec = threading.Thread(target=lambda: result.update(
+        code=record_main(argv, on_ready=lambda _port: ready.set())))
     rates: list[RateMessage] = []
     states: list[StateMessage] = []
     with Subscriber("testcar", "imu0", connect=[f"tcp/127.0.0.1:{port}"],

@@ -22,7 +22,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from types import FrameType
 from typing import Any
 
@@ -69,9 +69,10 @@ def _covariance(sub: Subscriber, timeout_s: float) -> tuple[tuple[float, float, 
 
 def record_main(argv: Sequence[str] | None = None, *,
                 stop: threading.Event | None = None,
-                ready: threading.Event | None = None) -> int:  # fmt: skip
-    """``gyrotherm record``; ``stop`` ends it from another thread, ``ready`` is set once
-    the sinks are open and subscribed (both for embedding and tests)."""
+                on_ready: Callable[[int | None], Any] | None = None) -> int:  # fmt: skip
+    """``gyrotherm record``; ``stop`` ends it from another thread, ``on_ready`` is called
+    with the Foxglove server's port (None without one) once the sinks are open and
+    subscribed (both for embedding and tests)."""
     args = _parser().parse_args(argv)
     if args.mcap is None and args.foxglove_port is None:
         print("gyrotherm record: error: give --mcap FILE and/or --foxglove-port PORT",
@@ -91,11 +92,11 @@ def record_main(argv: Sequence[str] | None = None, *,
         print(f"gyrotherm record: error: {exc}", file=sys.stderr)
         return 2
     with session:
-        return _record(args, session, stop, ready)
+        return _record(args, session, stop, on_ready)
 
 
 def _record(args: argparse.Namespace, session: Any, stop: threading.Event,
-            ready: threading.Event | None) -> int:  # fmt: skip
+            on_ready: Callable[[int | None], Any] | None) -> int:  # fmt: skip
     with Subscriber(args.vehicle, args.sensor, session=session) as probe:
         cov, cal_id = _covariance(probe, args.calibration_timeout_s)
     sinks: list[Sink] = []
@@ -125,8 +126,8 @@ def _record(args: argparse.Namespace, session: Any, stop: threading.Event,
                         else f", Foxglove ws://{args.foxglove_host}:{server_port}")
                 print(f"gyrotherm record: {sub.keys.rate.rsplit('/', 1)[0]}/*{where}{live}",
                       file=sys.stderr)  # fmt: skip
-            if ready is not None:
-                ready.set()
+            if on_ready is not None:
+                on_ready(server_port)
             _wait(stop, rates, args.count, args.duration_s)
             stats = sub.stats()
     finally:
