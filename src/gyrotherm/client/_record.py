@@ -71,8 +71,8 @@ def record_main(argv: Sequence[str] | None = None, *,
                 stop: threading.Event | None = None,
                 on_ready: Callable[[int | None], Any] | None = None) -> int:  # fmt: skip
     """``gyrotherm record``; ``stop`` ends it from another thread, ``on_ready`` is called
-    with the Foxglove server's port (None without one) once the sinks are open and
-    subscribed (both for embedding and tests)."""
+    with the Foxglove server's port (None without one) once the sinks are open and the
+    first message came through the subscription (both for embedding and tests)."""
     args = _parser().parse_args(argv)
     if args.mcap is None and args.foxglove_port is None:
         print("gyrotherm record: error: give --mcap FILE and/or --foxglove-port PORT",
@@ -126,7 +126,9 @@ def _record(args: argparse.Namespace, session: Any, stop: threading.Event,
                         else f", Foxglove ws://{args.foxglove_host}:{server_port}")
                 print(f"gyrotherm record: {sub.keys.rate.rsplit('/', 1)[0]}/*{where}{live}",
                       file=sys.stderr)  # fmt: skip
-            if on_ready is not None:
+            if on_ready is not None:  # once the subscription delivers (health: 1 Hz)
+                while not (fan.first_message.wait(0.2) or stop.is_set()):
+                    pass
                 on_ready(server_port)
             _wait(stop, rates, args.count, args.duration_s)
             stats = sub.stats()
