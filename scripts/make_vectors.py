@@ -8,7 +8,8 @@ encoders (:mod:`gyrotherm.codecs._wire`) produce now.
 
 Each vector has the key suffix it is published on, the message kind and schema
 version, the complete payload as lower-case hex, and the decoded fields in wire
-order with their names, units and values (JSON numbers; ``null`` for nil). Vectors
+order with their names, units and values (JSON numbers; ``null`` for nil; the
+strings ``"NaN"``, ``"Infinity"``, ``"-Infinity"`` for those floats). Vectors
 with ``"direction": "decode"`` are payloads of an older publisher (fields appended
 later within schema 1 absent) that today's encoder no longer produces: a decoder
 must accept them and fill the documented default. See docs/wire-format.md.
@@ -18,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Any
@@ -65,6 +67,9 @@ STATE_EFFECTS = StateMessage(3, 10.0, 11.0, 25.5, 0.125, -1.5, 0.0625, (1.0, 2.0
                              {"x": AxisEffects(31.25, -0.5, -1, 600.0, 0.0125),
                               "y": AxisEffects(25.5, 0.0, 0, 600.0, 0.0),
                               "z": AxisEffects(27.0, 1.0, 1, 600.0, -0.25)})  # fmt: skip
+NAN = float("nan")
+STATE_NAN = StateMessage(0, 0.5, 1700000000.5, NAN, NAN, NAN, NAN, (0.0, 0.0, 0.0),
+                         StatusFlags.TEMPERATURE_STALE | StatusFlags.ESTIMATOR_WARMUP)
 HEALTH = HealthMessage(41, 40.5, 1700000041.0, 42.0, 1205, 1200,
                        {"crc_mismatch": 3, "no_subscriber": 2}, StatusFlags.NONE, "cal-7f3a", 1)
 HEALTH_EMPTY = HealthMessage(0, None, 1700000000.0, 0.5, 0, 0, {}, StatusFlags.NO_CALIBRATION,
@@ -79,7 +84,10 @@ CALIBRATION_NONE = CalibrationInfo("", None, None)
 
 
 def _plain(v: Any) -> Any:
-    """JSON value of a decoded field (tuples → lists, enums → int, effects → objects)."""
+    """JSON value of a decoded field (tuples → lists, enums → int, effects → objects;
+    NaN, ±inf → the strings "NaN", "Infinity", "-Infinity": JSON has no such numbers)."""
+    if isinstance(v, float) and not math.isfinite(v):
+        return "NaN" if math.isnan(v) else ("Infinity" if v > 0 else "-Infinity")
     if isinstance(v, StatusFlags):
         return int(v)
     if isinstance(v, AxisEffects):
@@ -136,6 +144,10 @@ def build() -> dict[str, Any]:
                 "seq >= 65536 (uint 32), flags NO_CALIBRATION|TEMPERATURE_STALE"),
         _vector("state", "state", "state", encode_state(STATE), _fields("state", STATE),
                 "without effects (13 elements): no compensator running, or an older publisher"),
+        _vector("state-not-available", "state", "state", encode_state(STATE_NAN),
+                _fields("state", STATE_NAN),
+                "before the first temperature frame: NaN (\"not available\") as float 64 "
+                "7ff8000000000000; JSON writes it as the string \"NaN\""),
         _vector("state-effects", "state", "state", encode_state(STATE_EFFECTS),
                 _fields("state", STATE_EFFECTS), "with the appended effects element (14)"),
         _vector("health", "health", "health", encode_health(HEALTH), _fields("health", HEALTH),
