@@ -57,6 +57,8 @@ def test_cdr_bytes_hand_computed() -> None:
     assert data[18:20] == b"\x00\x00"  # pad to offset 16 (from the header's end)
     assert len(data) == 4 + 16 + 8 * (4 + 9 + 3 + 9 + 3 + 9)
     assert stamp(-0.5) == (-1, 500_000_000)
+    with pytest.raises(ValueError, match="int32"):
+        stamp(2.0**31)
     assert len(temperature_cdr(1.0, "", 25.0, 0.01)) == 4 + 8 + 4 + 1 + 3 + 16
 
 
@@ -154,3 +156,14 @@ def _check_with_rosbags(mcap_path: Path, bag: Path, rates: list[RateMessage]) ->
         av = g.angular_velocity
         assert [av.x, av.y, av.z] == pytest.approx([x * DEG for x in sent.rate_dps], rel=1e-15)
         assert g.header.frame_id == "gyro_link"
+
+
+def test_a_stamp_no_ros_time_holds_is_counted_not_written(tmp_path: Path) -> None:
+    from gyrotherm.client._channels import Fanout, McapSink
+
+    fan = Fanout([McapSink(str(tmp_path / "s.mcap"))], sensor="s")
+    zero = (0.0, 0.0, 0.0)
+    fan.on_rate(RateMessage(0, 2.0**40, 1.0, zero, zero, zero))
+    fan.on_state(StateMessage(0, 2.0**40, 1.0, 20.0, 0.1, 0.0, 0.1, (0.0, 0.0, 0.0)))
+    fan.close()
+    assert fan.counts == {"unrepresentable_stamp": 2, "/gyrotherm/s/state": 1}

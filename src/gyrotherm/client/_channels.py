@@ -95,14 +95,20 @@ class Fanout:
         self.first_message = threading.Event()
 
     def _emit(self, name: str, t_ns: int, data: bytes) -> None:
+        """Write to every sink; counted by topic (``counts``; also
+        ``"unrepresentable_stamp"``: messages whose sensor time no ROS 2 Time holds)."""
         for sink, handles in zip(self._sinks, self._handles, strict=True):
             sink.write(handles[name], t_ns, data)
         self.counts[self.specs[name].topic] += 1
 
     def on_rate(self, msg: RateMessage) -> None:
         t_ns, cov = _ns(msg.receive_time_s), self.covariance_dps2
-        imu = _ros.imu_cdr(msg.sensor_time_s, self.frame_id, msg.rate_dps, cov)
-        raw = _ros.imu_cdr(msg.sensor_time_s, self.frame_id, msg.raw_rate_dps, cov)
+        try:
+            imu = _ros.imu_cdr(msg.sensor_time_s, self.frame_id, msg.rate_dps, cov)
+            raw = _ros.imu_cdr(msg.sensor_time_s, self.frame_id, msg.raw_rate_dps, cov)
+        except ValueError:  # a sensor time no ROS 2 Time can hold: counted, not written
+            self.counts["unrepresentable_stamp"] += 1
+            return
         with self._lock:
             self._emit("imu", t_ns, imu)
             self._emit("imu_raw", t_ns, raw)
@@ -110,11 +116,16 @@ class Fanout:
 
     def on_state(self, msg: StateMessage) -> None:
         t_ns = _ns(msg.receive_time_s)
-        temp = _ros.temperature_cdr(msg.sensor_time_s, self.frame_id, msg.temperature_c,
-                                    msg.temperature_std_c**2)  # fmt: skip
+        temp: bytes | None = None
+        try:
+            temp = _ros.temperature_cdr(msg.sensor_time_s, self.frame_id, msg.temperature_c,
+                                        msg.temperature_std_c**2)  # fmt: skip
+        except ValueError:  # the JSON state has no such limit: still written
+            self.counts["unrepresentable_stamp"] += 1
         state = json.dumps(_ros.state_json(msg)).encode()
         with self._lock:
-            self._emit("temperature", t_ns, temp)
+            if temp is not None:
+                self._emit("temperature", t_ns, temp)
             self._emit("state", t_ns, state)
         self.first_message.set()
 

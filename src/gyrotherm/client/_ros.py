@@ -49,9 +49,13 @@ _ABSENT9 = (-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 def stamp(t_s: float) -> tuple[int, int]:
-    """(sec, nanosec) of a time in s (nanosec in [0, 10⁹))."""
+    """(sec, nanosec) of a time in s (nanosec in [0, 10⁹)); ValueError when ``sec`` does
+    not fit builtin_interfaces/Time's int32 (beyond 2038 or before 1901 as epoch time)."""
     ns = round(t_s * 1e9)
-    return ns // 1_000_000_000, ns % 1_000_000_000
+    sec = ns // 1_000_000_000
+    if not -(2**31) <= sec < 2**31:
+        raise ValueError(f"time stamp {t_s!r} s does not fit a ROS 2 Time (int32 seconds)")
+    return sec, ns % 1_000_000_000
 
 
 class _Cdr:
