@@ -13,11 +13,12 @@ import pytest
 from gyrotherm.cli import _conventions as conv
 from gyrotherm.cli import build_parser, main
 from gyrotherm.client._listen import _parser as listen_parser
+from gyrotherm.client._record import _parser as record_parser
 
 #: Subcommands that must exist (the walk below covers any others too).
 COMMANDS = {"gyrotherm sim chamber", "gyrotherm sim stream", "gyrotherm fit",
             "gyrotherm evaluate", "gyrotherm paper", "gyrotherm diagnose", "gyrotherm demo",
-            "gyrotherm run", "gyrotherm listen"}
+            "gyrotherm run", "gyrotherm listen", "gyrotherm record"}
 
 
 def _leaves() -> dict[str, argparse.ArgumentParser]:
@@ -28,6 +29,9 @@ def _leaves() -> dict[str, argparse.ArgumentParser]:
     listen = listen_parser()
     listen.formatter_class = conv.DefaultsFormatter
     out["gyrotherm listen"] = listen
+    record = record_parser()
+    record.formatter_class = conv.DefaultsFormatter
+    out["gyrotherm record"] = record
     return out
 
 

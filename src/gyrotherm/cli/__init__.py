@@ -26,6 +26,7 @@ def build_parser() -> argparse.ArgumentParser:
     _import.register(sub)
     _export.register(sub)
     sub.add_parser("listen", help="live view of a sensor's Zenoh stream (see: listen --help)")
+    sub.add_parser("record", help="record to MCAP (ROS 2 Imu) / serve Foxglove (record --help)")
     return _conventions.apply(parser)  # defaults in every help, -q after the subcommand
 
 
@@ -36,6 +37,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         from gyrotherm.client import listen_main
 
         return listen_main(args_list[quiet + 1:], quiet=quiet,
+                           formatter_class=_conventions.DefaultsFormatter)
+    if args_list[quiet:quiet + 1] == ["record"]:  # client side, own parser; mcap lazily
+        from gyrotherm.client._record import record_main
+
+        return record_main(args_list[quiet + 1:] + (["-q"] if quiet else []),
                            formatter_class=_conventions.DefaultsFormatter)
     parser = build_parser()
     args = parser.parse_args(args_list)

@@ -1,0 +1,181 @@
+"""``gyrotherm record``: a daemon's streams into an MCAP file (ROS 2 messages), and/or live
+to Foxglove over WebSocket.
+
+Client side, like ``gyrotherm listen``: subscribes to ``gyrotherm/<vehicle>/<sensor>/*``
+and writes the channels of :mod:`gyrotherm.client._channels` (sensor_msgs/Imu in rad/s,
+sensor_msgs/Temperature, gyrotherm's state and health as JSON). It first asks the
+daemon's calibration queryable for the calibration's residual noise (the
+angular-velocity covariance; all zeros, "unknown", when there is none or no reply
+within ``--calibration-timeout-s``). It stops after ``--duration-s``, after
+``--count`` rate messages, or on SIGINT/SIGTERM, finishes the file and prints a
+summary (``--json``: one JSON object on stdout).
+
+Exit status: 0 after a clean stop with at least one message recorded, 1 when nothing
+arrived, 2 on a usage or configuration error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+from gyrotherm._errors import CalibrationError, ConfigError, DecodeError
+from gyrotherm._zenoh import DEFAULT_CONNECT, open_session
+from gyrotherm.client._channels import Fanout, McapSink, Sink
+from gyrotherm.client._ros import residual_variance_dps2
+from gyrotherm.client._subscriber import Subscriber
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="gyrotherm record",
+        description="Record a gyrotherm daemon's streams as ROS 2 messages in MCAP "
+                    "and/or serve them live to Foxglove.")  # fmt: skip
+    p.add_argument("--vehicle", required=True, help="vehicle name (key gyrotherm/<vehicle>/...)")
+    p.add_argument("--sensor", required=True, help="sensor name")
+    p.add_argument("--connect", action="append", default=None, metavar="ENDPOINT",
+                   help=f"zenoh endpoint to connect to, repeatable (default {DEFAULT_CONNECT[0]})")
+    p.add_argument("--zenoh-config", default=None, metavar="JSON5",
+                   help="zenoh config file used unchanged (replaces --connect; default: none)")
+    p.add_argument("--mcap", default=None, metavar="FILE",
+                   help="write an MCAP file (default: none)")
+    p.add_argument("--foxglove-port", type=int, default=None, metavar="PORT",
+                   help="serve the channels live on a Foxglove WebSocket (0: any free port; "
+                   "default: no server)")
+    p.add_argument("--foxglove-host", default="127.0.0.1",
+                   help="address the Foxglove server binds (default 127.0.0.1, loopback)")
+    p.add_argument("--frame-id", default=None,
+                   help="ROS header frame_id (default: the sensor name)")
+    p.add_argument("--duration-s", type=float, default=None,
+                   help="stop after S seconds (default: until --count, SIGINT or SIGTERM)")
+    p.add_argument("--count", type=int, default=None,
+                   help="stop after N rate messages (default: no limit)")
+    p.add_argument("--calibration-timeout-s", type=float, default=2.0,
+                   help="wait this long for the daemon's calibration reply (2)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress output on stderr")
+    p.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",
+                   help="the summary as JSON: on stdout without FILE (or '-'), else to FILE "
+                   "(parent directories created) (default: a line on stderr)")
+    return p  # fmt: skip
+
+
+def _covariance(sub: Subscriber, timeout_s: float) -> tuple[tuple[float, float, float], str]:
+    try:
+        info = sub.query_calibration(timeout_s=timeout_s)
+    except (TimeoutError, CalibrationError, DecodeError):
+        return (0.0, 0.0, 0.0), ""
+    return residual_variance_dps2(info.calibration), info.calibration_id
+
+
+def record_main(argv: Sequence[str] | None = None, *,
+                formatter_class: type[argparse.HelpFormatter] | None = None,
+                stop: threading.Event | None = None,
+                on_ready: Callable[[int | None], Any] | None = None) -> int:  # fmt: skip
+    """``gyrotherm record``; ``stop`` ends it from another thread, ``on_ready`` is called
+    with the Foxglove server's port (None without one) once the sinks are open and the
+    first message came through the subscription (both for embedding and tests)."""
+    parser = _parser()
+    if formatter_class is not None:
+        parser.formatter_class = formatter_class
+    args = parser.parse_args(argv)
+    if args.mcap is None and args.foxglove_port is None:
+        print("gyrotherm record: error: give --mcap FILE and/or --foxglove-port PORT",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    stop = threading.Event() if stop is None else stop
+    if threading.current_thread() is threading.main_thread():
+        def _on_signal(signum: int, frame: FrameType | None) -> None:
+            stop.set()
+
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, _on_signal)
+    try:
+        session = (open_session(config_file=args.zenoh_config) if args.zenoh_config
+                   else open_session(connect=args.connect or DEFAULT_CONNECT))  # fmt: skip
+    except ConfigError as exc:
+        print(f"gyrotherm record: error: {exc}", file=sys.stderr)
+        return 2
+    with session:
+        return _record(args, session, stop, on_ready)
+
+
+def _record(args: argparse.Namespace, session: Any, stop: threading.Event,
+            on_ready: Callable[[int | None], Any] | None) -> int:  # fmt: skip
+    with Subscriber(args.vehicle, args.sensor, session=session) as probe:
+        cov, cal_id = _covariance(probe, args.calibration_timeout_s)
+    sinks: list[Sink] = []
+    server_port = None
+    if args.mcap is not None:
+        sinks.append(McapSink(args.mcap))
+    if args.foxglove_port is not None:
+        from gyrotherm.client._foxglove import FoxgloveSink  # lazy: optional foxglove-sdk
+
+        fox = FoxgloveSink(host=args.foxglove_host, port=args.foxglove_port)
+        server_port = fox.port
+        sinks.append(fox)
+    fan = Fanout(sinks, sensor=args.sensor, frame_id=args.frame_id, covariance_dps2=cov)
+    rates = threading.Semaphore(0)
+
+    def on_rate(msg: Any) -> None:
+        fan.on_rate(msg)
+        rates.release()
+
+    t0 = time.monotonic()
+    try:
+        with Subscriber(args.vehicle, args.sensor, session=session, on_rate=on_rate,
+                        on_state=fan.on_state, on_health=fan.on_health) as sub:  # fmt: skip
+            if not args.quiet:
+                where = f" → {args.mcap}" if args.mcap else ""
+                live = ("" if server_port is None
+                        else f", Foxglove ws://{args.foxglove_host}:{server_port}")
+                print(f"gyrotherm record: {sub.keys.rate.rsplit('/', 1)[0]}/*{where}{live}",
+                      file=sys.stderr)  # fmt: skip
+            if on_ready is not None:  # once the subscription delivers (health: 1 Hz)
+                while not (fan.first_message.wait(0.2) or stop.is_set()):
+                    pass
+                on_ready(server_port)
+            _wait(stop, rates, args.count, args.duration_s)
+            stats = sub.stats()
+    finally:
+        fan.close()
+    summary = {
+        "mcap": args.mcap, "foxglove_port": server_port, "duration_s": time.monotonic() - t0,
+        "calibration_id": cal_id, "angular_velocity_variance_dps2": list(cov),
+        "messages": dict(sorted(fan.counts.items())),
+        "rate": {"received": stats.rate.received, "gaps": stats.rate.gaps,
+                 "missing": stats.rate.missing, "undecodable": stats.rate.undecodable},
+    }  # fmt: skip
+    if args.json == "-":
+        print(json.dumps(summary))
+    elif args.json:
+        out = Path(args.json)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(summary) + "\n", encoding="utf-8")
+    elif not args.quiet:
+        print(f"recorded {summary['messages']} in {summary['duration_s']:.1f} s", file=sys.stderr)
+    return 0 if fan.counts else 1
+
+
+def _wait(stop: threading.Event, rates: threading.Semaphore, count: int | None,
+          duration_s: float | None) -> None:  # fmt: skip
+    deadline = None if duration_s is None else time.monotonic() + duration_s
+    seen = 0
+    while not stop.is_set():
+        left = None if deadline is None else deadline - time.monotonic()
+        if left is not None and left <= 0:
+            return
+        step = 0.2 if left is None else min(0.2, left)
+        if count is None:
+            stop.wait(step)
+        elif rates.acquire(timeout=step):
+            seen += 1
+            if seen >= count:
+                return

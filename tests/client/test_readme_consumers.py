@@ -1,0 +1,57 @@
+"""README "Consuming the rates outside Python": its record command parses, and its ROS 2
+(rosbags) block runs on an MCAP that ``McapSink`` wrote, printing the rates in rad/s."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import re
+import shlex
+from pathlib import Path
+
+import pytest
+
+from gyrotherm.client._channels import Fanout, McapSink
+from gyrotherm.client._record import _parser
+from gyrotherm.codecs._wire import RateMessage, StatusFlags
+
+README = Path(__file__).resolve().parents[2] / "README.md"
+
+
+def _section() -> str:
+    text = README.read_text(encoding="utf-8")
+    start = text.index("## Consuming the rates outside Python")
+    return text[start:text.index("\n## ", start + 1)]
+
+
+def test_the_record_command_parses() -> None:
+    block = re.search(r"```sh\n(.*?)```", _section(), re.S)
+    assert block
+    line = block.group(1).replace("\\\n", " ").split("#")[0]
+    argv = shlex.split(line)
+    assert argv[:2] == ["gyrotherm", "record"]
+    args = _parser().parse_args(argv[2:])
+    assert args.mcap == "imu0.mcap" and args.foxglove_port == 8765 and args.sensor == "imu0"
+    assert args.foxglove_host == "127.0.0.1"
+
+
+def test_the_ros2_block_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    block = re.search(r"```python\n(.*?)```", _section(), re.S)
+    assert block
+    monkeypatch.chdir(tmp_path)
+    fan = Fanout([McapSink("imu0.mcap")], sensor="imu0")
+    sent = [RateMessage(i, 100.0 + i * 0.25, 1.7e9 + i, (0.0, 0.0, 90.0 * i),
+                        (0.0, 0.0, 1.0), (0.0, 0.0, 1.0 - 90.0 * i), StatusFlags.NONE)
+            for i in range(3)]  # 0, 90, 180 °/s → 0, π/2, π rad/s
+    for m in sent:
+        fan.on_rate(m)
+    fan.close()
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        exec(compile(block.group(1), "README.md", "exec"), {})
+    lines = [ln.split() for ln in out.getvalue().splitlines()]
+    assert [(int(a), int(b)) for a, b, _, _ in lines] == [(100, 0), (100, 250_000_000),
+                                                           (100, 500_000_000)]  # fmt: skip
+    assert [float(z) for _, _, z, _ in lines] == pytest.approx([0.0, math.pi / 2, math.pi])
+    assert (tmp_path / "imu0_bag" / "metadata.yaml").exists()
