@@ -22,7 +22,12 @@ from typing import Any
 import numpy as np
 
 from gyrotherm._errors import CalibrationError, ConfigError
-from gyrotherm.cli._inputs import add_input_options, load_inputs, spec_from_args
+from gyrotherm.cli._inputs import (
+    add_input_options,
+    load_inputs,
+    spec_from_args,
+    with_recorded_options,
+)
 from gyrotherm.codecs import Run
 from gyrotherm.compensation import ErrorMetrics, features, load_calibration
 from gyrotherm.compensation._autopilot import (
@@ -137,8 +142,9 @@ def cmd_export(args: argparse.Namespace) -> int:
     cal = load_calibration(args.calibration)
     where = str(args.calibration)
     device = _device_id(args, cal) if args.px4 else 0
-    fit_runs = _of_device(cal, load_inputs(args), "RUNS") if args.runs \
-        else provenance_runs(cal, where, spec_from_args(args))
+    fit_runs = _of_device(cal, load_inputs(args), "RUNS") if args.runs else provenance_runs(
+        cal, where, spec_from_args(with_recorded_options(args, cal.provenance.get(
+            "input_options"))))
     cubic = fit_cubic(fit_runs, args.rest)
     in_sample = not args.validate
     valid = fit_runs if in_sample else _of_device(cal, load_inputs(args, args.validate),

@@ -62,6 +62,37 @@ def spec_from_args(args: argparse.Namespace) -> InputSpec:
     )
 
 
+_OPTION_KEYS = ("format", "columns", "delimiter", "dbc", "signals", "imu_topic",
+                "temperature_topic")
+
+
+def recorded_options(args: argparse.Namespace) -> dict[str, object]:
+    """The input options given (not left at their default), as a calibration's
+    provenance records them (``input_options``), files as absolute paths: what
+    ``gyrotherm export`` needs to read the fitting runs again."""
+    out: dict[str, object] = {}
+    for key in _OPTION_KEYS:
+        value = getattr(args, key, None)
+        if value is None or (key == "format" and value == "auto"):
+            continue
+        out[key] = str(Path(value).resolve()) if key in ("dbc", "signals") else value
+    return out
+
+
+def with_recorded_options(args: argparse.Namespace,
+                          recorded: object) -> argparse.Namespace:
+    """``args`` with the input options a calibration recorded filled in where the
+    command line gave none (the command line wins)."""
+    if not isinstance(recorded, dict) or any(
+            getattr(args, k, None) not in (None, "auto") for k in _OPTION_KEYS):
+        return args
+    merged = argparse.Namespace(**vars(args))
+    for key in _OPTION_KEYS:
+        if key in recorded:
+            setattr(merged, key, recorded[key])
+    return merged
+
+
 def load_inputs(args: argparse.Namespace, paths: list[str] | None = None) -> list[Run]:
     """Every run in ``paths`` (default ``args.runs``), read as the input options say,
     with a progress line unless ``args.quiet``."""

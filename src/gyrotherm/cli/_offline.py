@@ -17,7 +17,7 @@ from gyrotherm.cli._common import (
     estimator_from_args,
     progress,
 )
-from gyrotherm.cli._inputs import add_input_options, load_inputs
+from gyrotherm.cli._inputs import add_input_options, load_inputs, recorded_options
 from gyrotherm.cli._tables import coefficient_table, error_table, score_table
 from gyrotherm.codecs import Run, write_run
 from gyrotherm.compensation import (
@@ -119,6 +119,8 @@ def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunF
     cal = fit(feats, args.model, estimator=est, method=args.method)
     if device:
         cal = replace(cal, provenance={**cal.provenance, "device_id": device})
+    if recorded_options(args):
+        cal = replace(cal, provenance={**cal.provenance, "input_options": recorded_options(args)})
     scaling = default_scaling(feats)
     per_run = fit_per_run(feats, args.model, estimator=est, scaling=scaling) if len(feats) > 1 \
         else []
