@@ -66,7 +66,7 @@ def _rms(values: Any) -> float:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    from gyrotherm.cli._offline import paper_tables
+    from gyrotherm.cli._paper import paper_tables
 
     print("== 1. Fit: the paper's chamber experiment, simulated ==", flush=True)
     valid, cal = paper_tables(args)  # the eq. 12 calibration, streamed below
