@@ -25,4 +25,4 @@ pub use decode::{
     DecodeError, HealthMessage, RateMessage, StateMessage,
 };
 pub use stats::{LatencyStats, StreamStats};
-pub use subscriber::{keys, Error, Keys, Subscriber};
+pub use subscriber::{keys, Error, Keys, Subscriber, SubscriberStats};

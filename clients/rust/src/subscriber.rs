@@ -1,10 +1,12 @@
-//! Subscriber to a gyrotherm daemon's rate stream over Eclipse Zenoh.
+//! Subscriber to a gyrotherm daemon over Eclipse Zenoh.
 //!
-//! Each zenoh sample on `gyrotherm/<vehicle>/<sensor>/rate` is decoded in zenoh's
-//! callback thread ([`crate::decode::decode_rate`]), accounted (sequence gaps,
-//! latency = wall clock at arrival − `receive_time_s`, as the Python `Subscriber`),
-//! and queued (bounded, oldest dropped first and counted) for [`Subscriber::recv_rate`].
-//! Undecodable payloads are counted with their error, never raised into zenoh.
+//! One zenoh subscriber on `gyrotherm/<vehicle>/<sensor>/*` (as the Python
+//! `Subscriber`): each sample on the rate, state or health key is decoded in zenoh's
+//! callback thread ([`crate::decode`]) and accounted per stream (sequence gaps,
+//! latency = wall clock at arrival − `receive_time_s`). Rate messages are queued
+//! (bounded, oldest dropped first and counted) for [`Subscriber::recv_rate`]; the
+//! latest state and health are kept. Undecodable payloads are counted with their
+//! error, never raised into zenoh.
 
 use std::collections::VecDeque;
 use std::fmt;
@@ -14,7 +16,10 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use zenoh::sample::{Sample, SampleKind};
 use zenoh::{Config, Session, Wait};
 
-use crate::decode::{decode_calibration_info, decode_rate, flags, CalibrationInfo, RateMessage};
+use crate::decode::{
+    decode_calibration_info, decode_health, decode_rate, decode_state, flags, CalibrationInfo,
+    DecodeError, HealthMessage, RateMessage, StateMessage,
+};
 use crate::stats::{LatencyTracker, SequenceTracker, StreamStats};
 
 /// The Python client's default endpoint.
@@ -110,10 +115,9 @@ pub fn session_config(connect: &[String]) -> Result<Config, Error> {
     Ok(config)
 }
 
-#[derive(Debug)]
-struct Inner {
-    queue: VecDeque<RateMessage>,
-    capacity: usize,
+/// Accounting of one stream (rate, state or health).
+#[derive(Debug, Default)]
+struct Counters {
     seq: SequenceTracker,
     latency: LatencyTracker,
     received: u64,
@@ -121,6 +125,55 @@ struct Inner {
     dropped: u64,
     non_finite: u64,
     last_error: Option<String>,
+}
+
+impl Counters {
+    fn observe(&mut self, seq: u64, receive_time_s: f64, arrival_s: f64) {
+        self.received += 1;
+        self.seq.observe(seq);
+        self.latency.add(arrival_s - receive_time_s);
+    }
+
+    fn failed(&mut self, e: DecodeError) {
+        self.undecodable += 1;
+        self.last_error = Some(e.0);
+    }
+
+    fn snapshot(&self) -> StreamStats {
+        StreamStats {
+            received: self.received,
+            gaps: self.seq.gaps,
+            missing: self.seq.missing,
+            resets: self.seq.resets,
+            duplicates: self.seq.duplicates,
+            undecodable: self.undecodable,
+            dropped: self.dropped,
+            last_seq: self.seq.last_seq,
+            last_error: self.last_error.clone(),
+            latency: self.latency.snapshot(),
+            non_finite: self.non_finite,
+        }
+    }
+}
+
+/// Statistics of the three streams, as the Python `SubscriberStats`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SubscriberStats {
+    pub rate: StreamStats,
+    pub state: StreamStats,
+    pub health: StreamStats,
+}
+
+#[derive(Debug)]
+struct Inner {
+    queue: VecDeque<RateMessage>,
+    capacity: usize,
+    rate: Counters,
+    state: Counters,
+    health: Counters,
+    last_state: Option<StateMessage>,
+    last_health: Option<HealthMessage>,
+    closed: bool,
 }
 
 type Shared = Arc<(Mutex<Inner>, Condvar)>;
@@ -137,33 +190,51 @@ fn now_s() -> f64 {
         .unwrap_or(0.0)
 }
 
-fn on_sample(shared: &Shared, sample: &Sample) {
+fn on_sample(shared: &Shared, keys: &Keys, sample: &Sample) {
     let arrival_s = now_s();
     if sample.kind() != SampleKind::Put {
         return;
     }
-    let decoded = decode_rate(&sample.payload().to_bytes());
+    // exact keys only, as the Python client
+    let key = sample.key_expr().as_str();
+    let payload = sample.payload().to_bytes();
     let mut inner = lock(shared);
-    match decoded {
-        Err(e) => {
-            inner.undecodable += 1;
-            inner.last_error = Some(e.0);
-        }
-        Ok(msg) => {
-            inner.received += 1;
-            if msg.flags & flags::NON_FINITE != 0 {
-                inner.non_finite += 1;
+    if key == keys.rate {
+        match decode_rate(&payload) {
+            Err(e) => inner.rate.failed(e),
+            Ok(msg) => {
+                inner.rate.observe(msg.seq, msg.receive_time_s, arrival_s);
+                if msg.flags & flags::NON_FINITE != 0 {
+                    inner.rate.non_finite += 1;
+                }
+                if inner.queue.len() == inner.capacity {
+                    inner.queue.pop_front();
+                    inner.rate.dropped += 1;
+                }
+                inner.queue.push_back(msg);
             }
-            inner.seq.observe(msg.seq);
-            inner.latency.add(arrival_s - msg.receive_time_s);
-            if inner.queue.len() == inner.capacity {
-                inner.queue.pop_front();
-                inner.dropped += 1;
-            }
-            inner.queue.push_back(msg);
-            shared.1.notify_one();
         }
+    } else if key == keys.state {
+        match decode_state(&payload) {
+            Err(e) => inner.state.failed(e),
+            Ok(msg) => {
+                inner.state.observe(msg.seq, msg.receive_time_s, arrival_s);
+                inner.last_state = Some(msg);
+            }
+        }
+    } else if key == keys.health {
+        match decode_health(&payload) {
+            Err(e) => inner.health.failed(e),
+            Ok(msg) => {
+                inner.health.observe(msg.seq, msg.receive_time_s, arrival_s);
+                inner.last_health = Some(msg);
+            }
+        }
+    } else {
+        return;
     }
+    drop(inner);
+    shared.1.notify_all();
 }
 
 /// Subscribes to one gyro's rate stream; see the module docs.
@@ -197,22 +268,24 @@ impl Subscriber {
             Mutex::new(Inner {
                 queue: VecDeque::with_capacity(queue_size.min(4096)),
                 capacity: queue_size,
-                seq: SequenceTracker::new(),
-                latency: LatencyTracker::default(),
-                received: 0,
-                undecodable: 0,
-                dropped: 0,
-                non_finite: 0,
-                last_error: None,
+                rate: Counters::default(),
+                state: Counters::default(),
+                health: Counters::default(),
+                last_state: None,
+                last_health: None,
+                closed: false,
             }),
             Condvar::new(),
         ));
-        let cb_shared = Arc::clone(&shared);
+        let (cb_shared, cb_keys) = (Arc::clone(&shared), keys.clone());
+        // one subscriber for the three keys, as the Python client: one callback
+        // thread, so accounting follows zenoh's delivery order
+        let all = format!("gyrotherm/{vehicle}/{sensor}/*");
         let subscriber = session
-            .declare_subscriber(keys.rate.clone())
-            .callback(move |sample| on_sample(&cb_shared, &sample))
+            .declare_subscriber(all.clone())
+            .callback(move |sample| on_sample(&cb_shared, &cb_keys, &sample))
             .wait()
-            .map_err(|e| Error::Zenoh(format!("zenoh subscribe {}: {e}", keys.rate)))?;
+            .map_err(|e| Error::Zenoh(format!("zenoh subscribe {all}: {e}")))?;
         Ok(Self { keys, shared, _subscriber: subscriber, session })
     }
 
@@ -228,6 +301,9 @@ impl Subscriber {
         loop {
             if let Some(msg) = inner.queue.pop_front() {
                 return Some(msg);
+            }
+            if inner.closed {
+                return None;
             }
             let left = deadline.checked_duration_since(Instant::now())?;
             if left.is_zero() {
@@ -247,21 +323,45 @@ impl Subscriber {
         std::iter::from_fn(move || self.recv_rate(timeout))
     }
 
-    /// Snapshot of the rate stream's counters and latency.
-    pub fn stats(&self) -> StreamStats {
+    /// Snapshot of every stream's counters and latency.
+    pub fn stats(&self) -> SubscriberStats {
         let inner = lock(&self.shared);
-        StreamStats {
-            received: inner.received,
-            gaps: inner.seq.gaps,
-            missing: inner.seq.missing,
-            resets: inner.seq.resets,
-            duplicates: inner.seq.duplicates,
-            undecodable: inner.undecodable,
-            dropped: inner.dropped,
-            last_seq: inner.seq.last_seq,
-            last_error: inner.last_error.clone(),
-            latency: inner.latency.snapshot(),
-            non_finite: inner.non_finite,
+        SubscriberStats {
+            rate: inner.rate.snapshot(),
+            state: inner.state.snapshot(),
+            health: inner.health.snapshot(),
+        }
+    }
+
+    /// The latest state message received, if any.
+    pub fn last_state(&self) -> Option<StateMessage> {
+        lock(&self.shared).last_state.clone()
+    }
+
+    /// The latest health message received, if any.
+    pub fn last_health(&self) -> Option<HealthMessage> {
+        lock(&self.shared).last_health.clone()
+    }
+
+    /// Block until `predicate(&self.stats())` holds (re-checked after every sample)
+    /// or `timeout` passes; return whether it holds.
+    pub fn wait_for(&self, predicate: impl Fn(&SubscriberStats) -> bool, timeout: Duration) -> bool {
+        let deadline = Instant::now() + timeout;
+        let mut inner = lock(&self.shared);
+        loop {
+            let stats = SubscriberStats {
+                rate: inner.rate.snapshot(),
+                state: inner.state.snapshot(),
+                health: inner.health.snapshot(),
+            };
+            if predicate(&stats) {
+                return true;
+            }
+            let left = match deadline.checked_duration_since(Instant::now()) {
+                Some(d) if !d.is_zero() && !inner.closed => d,
+                _ => return false,
+            };
+            inner = self.shared.1.wait_timeout(inner, left).unwrap_or_else(|p| p.into_inner()).0;
         }
     }
 
@@ -298,6 +398,8 @@ impl Subscriber {
 
 impl Drop for Subscriber {
     fn drop(&mut self) {
+        lock(&self.shared).closed = true;
+        self.shared.1.notify_all();
         let _ = self.session.close().wait();
     }
 }
