@@ -130,8 +130,9 @@ def test_readme_rust_servo_loop_against_the_daemon(
         try:
             lines: queue.Queue[str | None] = queue.Queue()
             threading.Thread(target=_reader, args=(proc.stdout, lines), daemon=True).start()
-            assert _next_json(lines, proc) == {"event": "ready"}  # Rust got a health message
+            ready = _next_json(lines, proc)  # Rust got a health message, queried the calibration
             assert sub.wait_for(lambda s: s.health.received >= 1, timeout_s=TIMEOUT_S)
+            calibration_id = sub.query_calibration(timeout_s=TIMEOUT_S).calibration_id
             for msg in frames:
                 bus.send(msg)
             got = [_next_json(lines, proc) for _ in range(n)]
@@ -143,6 +144,8 @@ def test_readme_rust_servo_loop_against_the_daemon(
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()
+    assert ready == {"event": "ready", "calibration_id": calibration_id}
+    assert calibration_id  # the daemon fixture loads one
     assert [g["event"] for g in got] == ["sample"] * n
     assert [g["seq"] for g in got] == [m.seq for m in rates]
     assert [g["seq"] for g in got] == list(range(got[0]["seq"], got[0]["seq"] + n))

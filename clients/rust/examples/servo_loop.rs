@@ -7,8 +7,9 @@
 //! Each rate message gives one command `command_dps = -gain · rate_dps[z]` (°/s).
 //! The loop stops after `--max-samples` messages, or when none arrives for
 //! `--timeout-s` seconds (a watchdog: exit status 1 then). `--json` prints one JSON
-//! object per line: `{"event":"ready"}` once the daemon's first health message
-//! arrived (the subscription is in place), one `"sample"` per rate message, then
+//! object per line: `{"event":"ready","calibration_id":…}` once the daemon's first
+//! health message arrived (the subscription is in place) and its calibration
+//! queryable answered (`null` if it did not), one `"sample"` per rate message, then
 //! `"done"` with the rate stream's statistics (gaps, latency p50/p99/max in ms).
 
 use std::process::ExitCode;
@@ -129,7 +130,15 @@ fn main() -> ExitCode {
             );
             return ExitCode::from(1);
         }
-        println!("{{\"event\":\"ready\"}}");
+        // the daemon's calibration queryable: which calibration compensates these rates
+        let calibration_id = match sub.query_calibration(Duration::from_secs(5)) {
+            Ok(info) => format!("{:?}", info.calibration_id),
+            Err(e) => {
+                eprintln!("servo_loop: {e}");
+                "null".into()
+            }
+        };
+        println!("{{\"event\":\"ready\",\"calibration_id\":{calibration_id}}}");
     }
 
     // ---- the servo loop itself ------------------------------------------------
