@@ -51,7 +51,9 @@ fn parse_args() -> Result<Args, String> {
         if flag == "-h" || flag == "--help" {
             return Err(USAGE.into());
         }
-        let value = it.next().ok_or_else(|| format!("{flag}: missing value\n{USAGE}"))?;
+        let value = it
+            .next()
+            .ok_or_else(|| format!("{flag}: missing value\n{USAGE}"))?;
         let num = |what: &str| -> Result<f64, String> {
             value
                 .parse::<f64>()
@@ -75,7 +77,8 @@ fn parse_args() -> Result<Args, String> {
         }
     }
     if a.connect.is_empty() {
-        a.connect.push(gyrotherm_client::subscriber::DEFAULT_CONNECT.into());
+        a.connect
+            .push(gyrotherm_client::subscriber::DEFAULT_CONNECT.into());
     }
     Ok(a)
 }
@@ -126,7 +129,9 @@ fn main() -> ExitCode {
         if !sub.wait_for(|s| s.health.received >= 1, ready_timeout) {
             eprintln!(
                 "servo_loop: no health message on {} within {} s (daemon at {:?}?)",
-                sub.keys().health, a.ready_timeout_s, a.connect
+                sub.keys().health,
+                a.ready_timeout_s,
+                a.connect
             );
             return ExitCode::from(1);
         }
@@ -151,11 +156,20 @@ fn main() -> ExitCode {
                     "{{\"event\":\"sample\",\"seq\":{},\"sensor_time_s\":{},\"receive_time_s\":{},\
                      \"rate_dps\":[{},{},{}],\"raw_rate_dps\":[{},{},{}],\"bias_dps\":[{},{},{}],\
                      \"flags\":{},\"command_dps\":{}}}",
-                    msg.seq, num(msg.sensor_time_s), num(msg.receive_time_s),
-                    num(msg.rate_dps[0]), num(msg.rate_dps[1]), num(msg.rate_dps[2]),
-                    num(msg.raw_rate_dps[0]), num(msg.raw_rate_dps[1]), num(msg.raw_rate_dps[2]),
-                    num(msg.bias_dps[0]), num(msg.bias_dps[1]), num(msg.bias_dps[2]),
-                    msg.flags, num(command_dps)
+                    msg.seq,
+                    num(msg.sensor_time_s),
+                    num(msg.receive_time_s),
+                    num(msg.rate_dps[0]),
+                    num(msg.rate_dps[1]),
+                    num(msg.rate_dps[2]),
+                    num(msg.raw_rate_dps[0]),
+                    num(msg.raw_rate_dps[1]),
+                    num(msg.raw_rate_dps[2]),
+                    num(msg.bias_dps[0]),
+                    num(msg.bias_dps[1]),
+                    num(msg.bias_dps[2]),
+                    msg.flags,
+                    num(command_dps)
                 );
             } else {
                 println!(
@@ -171,12 +185,18 @@ fn main() -> ExitCode {
     }
     let stats = sub.stats().rate;
     if a.json {
-        println!("{{\"event\":\"done\",\"samples\":{n},\"rate\":{}}}", stats_json(&stats));
+        println!(
+            "{{\"event\":\"done\",\"samples\":{n},\"rate\":{}}}",
+            stats_json(&stats)
+        );
     } else {
         let l = &stats.latency;
         println!(
             "done: {n} samples, {} gaps, latency p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms",
-            stats.gaps, l.p50_s * 1e3, l.p99_s * 1e3, l.max_s * 1e3
+            stats.gaps,
+            l.p50_s * 1e3,
+            l.p99_s * 1e3,
+            l.max_s * 1e3
         );
     }
     if n >= a.max_samples {

@@ -231,7 +231,11 @@ impl F<'_> {
     }
 
     fn sub<'b>(&'b self, name: &'b str) -> F<'b> {
-        F { what: self.what, i: self.i, name }
+        F {
+            what: self.what,
+            i: self.i,
+            name,
+        }
     }
 
     fn drops(&self, v: &Value) -> R<BTreeMap<String, u64>> {
@@ -272,7 +276,9 @@ impl F<'_> {
             let key_field = format!("{} key", self.name);
             let axis = self.sub(&key_field).str(k)?;
             if !matches!(axis.as_str(), "x" | "y" | "z") {
-                return Err(self.sub(&key_field).fail(k, "is not an axis ('x', 'y', 'z')"));
+                return Err(self
+                    .sub(&key_field)
+                    .fail(k, "is not an axis ('x', 'y', 'z')"));
             }
             let at = format!("{}['{axis}']", self.name);
             let a = match e {
@@ -321,7 +327,11 @@ fn header<'a>(a: &'a [Value], k: u64, what: &str, names: &[&str]) -> R<&'a [Valu
         )));
     }
     if a[0].as_u64() != Some(k) {
-        let got = a[0].as_u64().and_then(kind_name).map(|n| format!("({n}) ")).unwrap_or_default();
+        let got = a[0]
+            .as_u64()
+            .and_then(kind_name)
+            .map(|n| format!("({n}) "))
+            .unwrap_or_default();
         return Err(fail(
             what,
             0,
@@ -376,23 +386,52 @@ fn unpack(payload: &[u8], what: &str) -> R<Vec<Value>> {
 }
 
 const RATE_FIELDS: [&str; 13] = [
-    "seq", "sensor_time_s", "receive_time_s",
-    "rate_dps[0]", "rate_dps[1]", "rate_dps[2]",
-    "raw_rate_dps[0]", "raw_rate_dps[1]", "raw_rate_dps[2]",
-    "bias_dps[0]", "bias_dps[1]", "bias_dps[2]", "flags",
+    "seq",
+    "sensor_time_s",
+    "receive_time_s",
+    "rate_dps[0]",
+    "rate_dps[1]",
+    "rate_dps[2]",
+    "raw_rate_dps[0]",
+    "raw_rate_dps[1]",
+    "raw_rate_dps[2]",
+    "bias_dps[0]",
+    "bias_dps[1]",
+    "bias_dps[2]",
+    "flags",
 ];
 const STATE_FIELDS: [&str; 11] = [
-    "seq", "sensor_time_s", "receive_time_s", "temperature_c", "temperature_std_c",
-    "delta_t_c", "delta_t_std_c", "bias_dps[0]", "bias_dps[1]", "bias_dps[2]", "flags",
+    "seq",
+    "sensor_time_s",
+    "receive_time_s",
+    "temperature_c",
+    "temperature_std_c",
+    "delta_t_c",
+    "delta_t_std_c",
+    "bias_dps[0]",
+    "bias_dps[1]",
+    "bias_dps[2]",
+    "flags",
 ];
 const HEALTH_FIELDS: [&str; 9] = [
-    "seq", "sensor_time_s", "receive_time_s", "uptime_s", "frames_received",
-    "frames_published", "drops", "flags", "calibration_id",
+    "seq",
+    "sensor_time_s",
+    "receive_time_s",
+    "uptime_s",
+    "frames_received",
+    "frames_published",
+    "drops",
+    "flags",
+    "calibration_id",
 ];
 const CALIBRATION_FIELDS: [&str; 3] = ["calibration_id", "calibration", "health"];
 
 fn field<'a>(what: &'a str, names: &'a [&'a str], i: usize) -> F<'a> {
-    F { what, i, name: names[i - 2] }
+    F {
+        what,
+        i,
+        name: names[i - 2],
+    }
 }
 
 fn vec3(what: &str, names: &[&str], a: &[Value], first: usize) -> R<[f64; 3]> {
@@ -435,7 +474,12 @@ pub fn decode_state(payload: &[u8]) -> Result<StateMessage, DecodeError> {
     let (what, n) = ("state", &STATE_FIELDS);
     let a = header(&a, kind::STATE, what, n)?;
     let effects = match a.get(13) {
-        Some(v) => F { what, i: 13, name: "effects" }.effects(v)?,
+        Some(v) => F {
+            what,
+            i: 13,
+            name: "effects",
+        }
+        .effects(v)?,
         None => BTreeMap::new(),
     };
     Ok(StateMessage {
@@ -462,7 +506,12 @@ fn health_from(a: &[Value], what: &str) -> R<HealthMessage> {
     let n = &HEALTH_FIELDS;
     let a = header(a, kind::HEALTH, what, n)?;
     let counter_jumps = match a.get(11) {
-        Some(v) => F { what, i: 11, name: "counter_jumps" }.u64(v)?,
+        Some(v) => F {
+            what,
+            i: 11,
+            name: "counter_jumps",
+        }
+        .u64(v)?,
         None => 0,
     };
     Ok(HealthMessage {
@@ -533,7 +582,10 @@ mod tests {
         let mut a = rate_array();
         a[1] = Value::from(2u64);
         let e = decode_rate(&pack(Value::Array(a))).unwrap_err();
-        assert_eq!(e.0, "rate payload: field 'version' (index 1) = 2 is not the supported version 1");
+        assert_eq!(
+            e.0,
+            "rate payload: field 'version' (index 1) = 2 is not the supported version 1"
+        );
 
         let mut a = rate_array();
         a.pop();
@@ -554,21 +606,33 @@ mod tests {
         let mut a = rate_array();
         a[6] = Value::from("x");
         let e = decode_rate(&pack(Value::Array(a))).unwrap_err();
-        assert_eq!(e.0, "rate payload: field 'rate_dps[1]' (index 6) = 'x' is str, expected float");
+        assert_eq!(
+            e.0,
+            "rate payload: field 'rate_dps[1]' (index 6) = 'x' is str, expected float"
+        );
 
         let mut a = rate_array();
         a[0] = Value::from(2u64);
         let e = decode_rate(&pack(Value::Array(a))).unwrap_err();
-        assert_eq!(e.0, "rate payload: field 'kind' (index 0) = 2 (state) is not 1 (rate)");
+        assert_eq!(
+            e.0,
+            "rate payload: field 'kind' (index 0) = 2 (state) is not 1 (rate)"
+        );
 
         let mut a = rate_array();
         a[3] = Value::from(f64::NAN);
         let e = decode_rate(&pack(Value::Array(a))).unwrap_err();
-        assert!(e.0.starts_with("rate payload: field 'sensor_time_s' (index 3) = "), "{e}");
+        assert!(
+            e.0.starts_with("rate payload: field 'sensor_time_s' (index 3) = "),
+            "{e}"
+        );
         assert!(e.0.ends_with("is not finite"), "{e}");
 
         let e = decode_rate(&[0x93, 0x01]).unwrap_err();
-        assert!(e.0.starts_with("rate payload: not valid msgpack (2 bytes)"), "{e}");
+        assert!(
+            e.0.starts_with("rate payload: not valid msgpack (2 bytes)"),
+            "{e}"
+        );
         let mut bytes = pack(Value::Array(rate_array()));
         bytes.push(0);
         let e = decode_rate(&bytes).unwrap_err();

@@ -50,7 +50,9 @@ impl LatencyTracker {
     /// reservoir's choices.
     pub fn new(reservoir_size: usize, seed: u64) -> Result<Self, String> {
         if reservoir_size < 1 {
-            return Err(format!("reservoir_size = {reservoir_size} is invalid: must be >= 1"));
+            return Err(format!(
+                "reservoir_size = {reservoir_size} is invalid: must be >= 1"
+            ));
         }
         Ok(Self {
             size: reservoir_size,
@@ -93,7 +95,14 @@ impl LatencyTracker {
     pub fn snapshot(&self) -> LatencyStats {
         if self.count == 0 {
             let nan = f64::NAN;
-            return LatencyStats { count: 0, mean_s: nan, min_s: nan, max_s: nan, p50_s: nan, p99_s: nan };
+            return LatencyStats {
+                count: 0,
+                mean_s: nan,
+                min_s: nan,
+                max_s: nan,
+                p50_s: nan,
+                p99_s: nan,
+            };
         }
         let mut ordered = self.reservoir.clone();
         ordered.sort_by(f64::total_cmp);
@@ -183,7 +192,10 @@ mod tests {
     #[test]
     fn in_order_and_late_join_are_not_gaps() {
         let t = run(&[5, 6, 7, 8]);
-        assert_eq!((t.gaps, t.missing, t.resets, t.duplicates, t.last_seq), (0, 0, 0, 0, Some(8)));
+        assert_eq!(
+            (t.gaps, t.missing, t.resets, t.duplicates, t.last_seq),
+            (0, 0, 0, 0, Some(8))
+        );
     }
 
     #[test]

@@ -94,12 +94,18 @@ pub fn keys(vehicle: &str, sensor: &str) -> Result<Keys, Error> {
 /// exactly `connect`, no multicast or gossip scouting.
 pub fn session_config(connect: &[String]) -> Result<Config, Error> {
     if connect.is_empty() {
-        return Err(Error::Config("connect: at least one endpoint needed, e.g. tcp/127.0.0.1:7447".into()));
+        return Err(Error::Config(
+            "connect: at least one endpoint needed, e.g. tcp/127.0.0.1:7447".into(),
+        ));
     }
     let mut config = Config::default();
     let endpoints = format!(
         "[{}]",
-        connect.iter().map(|e| format!("{e:?}")).collect::<Vec<_>>().join(",")
+        connect
+            .iter()
+            .map(|e| format!("{e:?}"))
+            .collect::<Vec<_>>()
+            .join(",")
     );
     for (key, value) in [
         ("mode", "\"peer\""),
@@ -258,7 +264,9 @@ impl Subscriber {
     ) -> Result<Self, Error> {
         let keys = keys(vehicle, sensor)?;
         if queue_size < 1 {
-            return Err(Error::Config(format!("queue_size = {queue_size} is invalid: must be >= 1")));
+            return Err(Error::Config(format!(
+                "queue_size = {queue_size} is invalid: must be >= 1"
+            )));
         }
         let config = session_config(connect)?;
         let session = zenoh::open(config)
@@ -286,7 +294,12 @@ impl Subscriber {
             .callback(move |sample| on_sample(&cb_shared, &cb_keys, &sample))
             .wait()
             .map_err(|e| Error::Zenoh(format!("zenoh subscribe {all}: {e}")))?;
-        Ok(Self { keys, shared, _subscriber: subscriber, session })
+        Ok(Self {
+            keys,
+            shared,
+            _subscriber: subscriber,
+            session,
+        })
     }
 
     /// The gyro's key expressions.
@@ -345,7 +358,11 @@ impl Subscriber {
 
     /// Block until `predicate(&self.stats())` holds (re-checked after every sample)
     /// or `timeout` passes; return whether it holds.
-    pub fn wait_for(&self, predicate: impl Fn(&SubscriberStats) -> bool, timeout: Duration) -> bool {
+    pub fn wait_for(
+        &self,
+        predicate: impl Fn(&SubscriberStats) -> bool,
+        timeout: Duration,
+    ) -> bool {
         let deadline = Instant::now() + timeout;
         let mut inner = lock(&self.shared);
         loop {
@@ -361,7 +378,12 @@ impl Subscriber {
                 Some(d) if !d.is_zero() && !inner.closed => d,
                 _ => return false,
             };
-            inner = self.shared.1.wait_timeout(inner, left).unwrap_or_else(|p| p.into_inner()).0;
+            inner = self
+                .shared
+                .1
+                .wait_timeout(inner, left)
+                .unwrap_or_else(|p| p.into_inner())
+                .0;
         }
     }
 
@@ -390,8 +412,13 @@ impl Subscriber {
             }
         }
         match error {
-            Some(e) => Err(Error::Calibration(format!("{key}: daemon replied with error: {e}"))),
-            None => Err(Error::Timeout(format!("{key}: no reply within {} s", timeout.as_secs_f64()))),
+            Some(e) => Err(Error::Calibration(format!(
+                "{key}: daemon replied with error: {e}"
+            ))),
+            None => Err(Error::Timeout(format!(
+                "{key}: no reply within {} s",
+                timeout.as_secs_f64()
+            ))),
         }
     }
 }
@@ -417,7 +444,10 @@ mod tests {
             let e = keys(bad, "imu0").unwrap_err().to_string();
             assert!(e.starts_with("vehicle name"), "{e}");
         }
-        assert!(keys("v", "$").unwrap_err().to_string().starts_with("sensor name"));
+        assert!(keys("v", "$")
+            .unwrap_err()
+            .to_string()
+            .starts_with("sensor name"));
     }
 
     #[test]

@@ -5,8 +5,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
 
 use gyrotherm_client::decode::{
-    decode_calibration_info, decode_health, decode_rate, decode_state, AxisEffects,
-    HealthMessage,
+    decode_calibration_info, decode_health, decode_rate, decode_state, AxisEffects, HealthMessage,
 };
 use serde_json::Value as J;
 
@@ -48,11 +47,17 @@ fn eq_f64(got: f64, want: &J, at: &str) {
 }
 
 fn eq_u64(got: u64, want: &J, at: &str) {
-    assert_eq!(Some(got), want.as_u64(), "{at}: decoded {got}, vector says {want}");
+    assert_eq!(
+        Some(got),
+        want.as_u64(),
+        "{at}: decoded {got}, vector says {want}"
+    );
 }
 
 fn eq_f64x3(got: &[f64; 3], want: &J, at: &str) {
-    let w = want.as_array().unwrap_or_else(|| panic!("{at}: expected value is not an array"));
+    let w = want
+        .as_array()
+        .unwrap_or_else(|| panic!("{at}: expected value is not an array"));
     assert_eq!(w.len(), 3, "{at}: expected value has {} elements", w.len());
     for k in 0..3 {
         eq_f64(got[k], &w[k], &format!("{at}[{k}]"));
@@ -60,7 +65,11 @@ fn eq_f64x3(got: &[f64; 3], want: &J, at: &str) {
 }
 
 fn eq_str(got: &str, want: &J, at: &str) {
-    assert_eq!(Some(got), want.as_str(), "{at}: decoded {got:?}, vector says {want}");
+    assert_eq!(
+        Some(got),
+        want.as_str(),
+        "{at}: decoded {got:?}, vector says {want}"
+    );
 }
 
 fn fields(v: &J) -> Vec<(String, J)> {
@@ -68,7 +77,12 @@ fn fields(v: &J) -> Vec<(String, J)> {
         .as_array()
         .expect("fields")
         .iter()
-        .map(|f| (f["name"].as_str().expect("field name").to_owned(), f["value"].clone()))
+        .map(|f| {
+            (
+                f["name"].as_str().expect("field name").to_owned(),
+                f["value"].clone(),
+            )
+        })
         .collect()
 }
 
@@ -93,8 +107,12 @@ fn eq_msgpack(got: &rmpv::Value, want: &J, at: &str) {
         (M::Map(a), J::Object(b)) => {
             assert_eq!(a.len(), b.len(), "{at}: map size");
             for (k, x) in a {
-                let key = k.as_str().unwrap_or_else(|| panic!("{at}: non-string key {k}"));
-                let y = b.get(key).unwrap_or_else(|| panic!("{at}: decoded key {key:?} not in the vector"));
+                let key = k
+                    .as_str()
+                    .unwrap_or_else(|| panic!("{at}: non-string key {k}"));
+                let y = b
+                    .get(key)
+                    .unwrap_or_else(|| panic!("{at}: decoded key {key:?} not in the vector"));
                 eq_msgpack(x, y, &format!("{at}.{key}"));
             }
         }
@@ -103,7 +121,9 @@ fn eq_msgpack(got: &rmpv::Value, want: &J, at: &str) {
 }
 
 fn check_effects(got: &BTreeMap<String, AxisEffects>, want: &J, at: &str) {
-    let w = want.as_object().unwrap_or_else(|| panic!("{at}: expected value is not a map"));
+    let w = want
+        .as_object()
+        .unwrap_or_else(|| panic!("{at}: expected value is not a map"));
     let got_axes: BTreeSet<&str> = got.keys().map(String::as_str).collect();
     let want_axes: BTreeSet<&str> = w.keys().map(String::as_str).collect();
     assert_eq!(got_axes, want_axes, "{at}: axes");
@@ -112,20 +132,35 @@ fn check_effects(got: &BTreeMap<String, AxisEffects>, want: &J, at: &str) {
         let a = format!("{at}.{axis}");
         let names: BTreeSet<&str> = we.as_object().unwrap().keys().map(String::as_str).collect();
         let expected_names: BTreeSet<&str> = [
-            "structure_temperature_c", "hysteresis_h", "hysteresis_direction", "t_on_s",
+            "structure_temperature_c",
+            "hysteresis_h",
+            "hysteresis_direction",
+            "t_on_s",
             "effects_bias_dps",
         ]
         .into();
         assert_eq!(names, expected_names, "{a}: effect fields");
-        eq_f64(e.structure_temperature_c, &we["structure_temperature_c"], &format!("{a}.structure_temperature_c"));
-        eq_f64(e.hysteresis_h, &we["hysteresis_h"], &format!("{a}.hysteresis_h"));
+        eq_f64(
+            e.structure_temperature_c,
+            &we["structure_temperature_c"],
+            &format!("{a}.structure_temperature_c"),
+        );
+        eq_f64(
+            e.hysteresis_h,
+            &we["hysteresis_h"],
+            &format!("{a}.hysteresis_h"),
+        );
         assert_eq!(
             Some(i64::from(e.hysteresis_direction)),
             we["hysteresis_direction"].as_i64(),
             "{a}.hysteresis_direction"
         );
         eq_f64(e.t_on_s, &we["t_on_s"], &format!("{a}.t_on_s"));
-        eq_f64(e.effects_bias_dps, &we["effects_bias_dps"], &format!("{a}.effects_bias_dps"));
+        eq_f64(
+            e.effects_bias_dps,
+            &we["effects_bias_dps"],
+            &format!("{a}.effects_bias_dps"),
+        );
     }
 }
 
@@ -161,7 +196,11 @@ fn check_health(h: &HealthMessage, want_fields: &[(String, J)], at: &str) {
     }
     if !seen.contains("counter_jumps") {
         // appended in schema 1: absent from older publishers, decoded as 0
-        assert_eq!(h.counter_jumps, 0, "{at}: counter_jumps absent but decoded {}", h.counter_jumps);
+        assert_eq!(
+            h.counter_jumps, 0,
+            "{at}: counter_jumps absent but decoded {}",
+            h.counter_jumps
+        );
     }
 }
 
@@ -176,7 +215,11 @@ fn every_vector_decodes_to_its_fields() {
         let name = v["name"].as_str().expect("name");
         let kind = v["kind"].as_str().expect("kind");
         let bytes = hex(v["hex"].as_str().expect("hex"));
-        assert_eq!(Some(bytes.len() as u64), v["length"].as_u64(), "{name}: length");
+        assert_eq!(
+            Some(bytes.len() as u64),
+            v["length"].as_u64(),
+            "{name}: length"
+        );
         assert_eq!(v["schema_version"], 1, "{name}: schema_version");
         *kinds_seen.entry(kind.to_owned()).or_default() += 1;
         let fs = fields(v);
@@ -224,7 +267,11 @@ fn every_vector_decodes_to_its_fields() {
                     names.insert(f.clone());
                 }
                 if !names.contains("effects") {
-                    assert!(m.effects.is_empty(), "{name}: no effects element, decoded {:?}", m.effects);
+                    assert!(
+                        m.effects.is_empty(),
+                        "{name}: no effects element, decoded {:?}",
+                        m.effects
+                    );
                 }
                 assert!(names.len() >= 11, "{name}: every state field listed");
             }
@@ -242,17 +289,23 @@ fn every_vector_decodes_to_its_fields() {
                         "version" => eq_u64(1, want, &a),
                         "calibration_id" => eq_str(&c.calibration_id, want, &a),
                         "calibration" => match &c.calibration {
-                            None => assert!(want.is_null(), "{a}: decoded None, vector says {want}"),
+                            None => {
+                                assert!(want.is_null(), "{a}: decoded None, vector says {want}")
+                            }
                             Some(cal) => eq_msgpack(cal, want, &a),
                         },
                         "health" => match &c.health {
-                            None => assert!(want.is_null(), "{a}: decoded None, vector says {want}"),
+                            None => {
+                                assert!(want.is_null(), "{a}: decoded None, vector says {want}")
+                            }
                             Some(h) => {
                                 let hf: Vec<(String, J)> = want
                                     .as_array()
                                     .expect("health fields")
                                     .iter()
-                                    .map(|x| (x["name"].as_str().unwrap().to_owned(), x["value"].clone()))
+                                    .map(|x| {
+                                        (x["name"].as_str().unwrap().to_owned(), x["value"].clone())
+                                    })
                                     .collect();
                                 check_health(h, &hf, &a);
                             }
@@ -267,10 +320,22 @@ fn every_vector_decodes_to_its_fields() {
         }
     }
     // every message kind is covered, with both forms of state and health
-    assert!(kinds_seen.get("rate").copied().unwrap_or(0) >= 2, "{kinds_seen:?}");
-    assert!(kinds_seen.get("state").copied().unwrap_or(0) >= 2, "{kinds_seen:?}");
-    assert!(kinds_seen.get("health").copied().unwrap_or(0) >= 2, "{kinds_seen:?}");
-    assert!(kinds_seen.get("calibration").copied().unwrap_or(0) >= 1, "{kinds_seen:?}");
+    assert!(
+        kinds_seen.get("rate").copied().unwrap_or(0) >= 2,
+        "{kinds_seen:?}"
+    );
+    assert!(
+        kinds_seen.get("state").copied().unwrap_or(0) >= 2,
+        "{kinds_seen:?}"
+    );
+    assert!(
+        kinds_seen.get("health").copied().unwrap_or(0) >= 2,
+        "{kinds_seen:?}"
+    );
+    assert!(
+        kinds_seen.get("calibration").copied().unwrap_or(0) >= 1,
+        "{kinds_seen:?}"
+    );
     eprintln!("decoded {} vectors: {kinds_seen:?}", vectors.len());
 }
 
@@ -290,7 +355,8 @@ fn decoders_refuse_other_kinds() {
             if decoder == kind {
                 assert!(err.is_none(), "{}: {err:?}", v["name"]);
             } else {
-                let e = err.unwrap_or_else(|| panic!("{}: decode_{decoder} accepted a {kind}", v["name"]));
+                let e = err
+                    .unwrap_or_else(|| panic!("{}: decode_{decoder} accepted a {kind}", v["name"]));
                 assert!(
                     e.0.starts_with(&format!("{decoder} payload: field 'kind' (index 0) = ")),
                     "{}: {e}",
@@ -318,7 +384,11 @@ fn every_truncation_and_wrong_version_is_an_error() {
         };
         for cut in 0..bytes.len() {
             let e = decode(&bytes[..cut]).expect_err("truncated payload accepted");
-            assert!(e.contains("not valid msgpack"), "{}: cut {cut}: {e}", v["name"]);
+            assert!(
+                e.contains("not valid msgpack"),
+                "{}: cut {cut}: {e}",
+                v["name"]
+            );
         }
         // element 1 is the version, a positive fixint right after the array header
         let mut wrong = bytes.clone();
