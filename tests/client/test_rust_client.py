@@ -21,10 +21,19 @@ from typing import Any
 
 import pytest
 
+from gyrotherm._zenoh import keys, session_config
 from gyrotherm.bus import open_bus
 from gyrotherm.client import Subscriber
 from gyrotherm.codecs import FrameEncoder, RateMessage, Run
-from streamkit import run_frames
+from gyrotherm.codecs._wire import (
+    CalibrationInfo,
+    HealthMessage,
+    StatusFlags,
+    encode_calibration_info,
+    encode_health,
+    encode_rate,
+)
+from streamkit import open_ephemeral, run_frames
 
 ROOT = Path(__file__).resolve().parents[2]
 CRATE = ROOT / "clients" / "rust"
@@ -169,6 +178,70 @@ def test_readme_rust_servo_loop_against_the_daemon(
     print(f"rust: {n} samples, gaps 0, latency p50 {stats['latency_p50_ms']:.2f} ms, "
           f"p99 {stats['latency_p99_ms']:.2f} ms; python: p50 "
           f"{py_stats.latency.p50_s * 1e3:.2f} ms, p99 {py_stats.latency.p99_s * 1e3:.2f} ms")
+
+
+def test_rust_and_python_account_gaps_alike(built: None) -> None:
+    """Hand-made stream with a gap, a duplicate, an undecodable payload, a publisher
+    restart and a NaN rate: the Rust example and the Python Subscriber count the same."""
+    session, endpoint = open_ephemeral(session_config(listen=["tcp/127.0.0.1:0"]))
+    k = keys("gapcar", "imu0")
+    cal = encode_calibration_info(CalibrationInfo("cal-gaps", None, None))
+    queryable = session.declare_queryable(k.calibration, lambda q: q.reply(k.calibration, cal))
+    # 0 1 2 [3 4] 5 5(dup) 6 <garbage> 3(restart: 0..2 missing) 4 [5..9] 10 11(NaN)
+    seqs = [0, 1, 2, 5, 5, 6, None, 3, 4, 10, 11]
+    nan = float("nan")
+    payloads = [b"\x93garbage" if q is None else encode_rate(RateMessage(
+        q, 0.01 * q, 1.7e9 + q, (nan if q == 11 else 0.5 * q, -0.25, 1.0 + q),
+        (0.5 * q, 0.0, 1.0), (0.0, 0.25, -float(q)))) for q in seqs]  # fmt: skip
+    n = sum(q is not None for q in seqs)
+    cargo = _cargo()
+    argv = [cargo, "run", "--offline", "--example", "servo_loop", "--", "--vehicle", "gapcar",
+            "--sensor", "imu0", "--connect", endpoint, "--max-samples", str(n), "--json",
+            "--timeout-s", str(TIMEOUT_S)]  # fmt: skip
+    with Subscriber("gapcar", "imu0", session=session) as sub:
+        proc = subprocess.Popen(argv, cwd=CRATE, text=True, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE)  # fmt: skip
+        try:
+            lines: queue.Queue[str | None] = queue.Queue()
+            threading.Thread(target=_reader, args=(proc.stdout, lines), daemon=True).start()
+            # health until the Rust subscriber reports one (its route exists): each wait
+            # ends on the next line printed or after 0.2 s, at most TIMEOUT_S in all
+            ready: dict[str, Any] | None = None
+            for hseq in range(int(TIMEOUT_S / 0.2)):
+                session.put(k.health, encode_health(HealthMessage(
+                    hseq, None, 1.7e9, 1.0, 0, 0, {}, StatusFlags.NO_CALIBRATION)))  # fmt: skip
+                try:
+                    line = lines.get(timeout=0.2)
+                except queue.Empty:
+                    continue
+                assert line is not None, proc.stderr.read() if proc.stderr else ""
+                ready = json.loads(line)
+                break
+            assert ready == {"event": "ready", "calibration_id": "cal-gaps"}
+            for payload in payloads:
+                session.put(k.rate, payload)
+            got = [_next_json(lines, proc) for _ in range(n)]
+            done = _next_json(lines, proc)
+            assert proc.wait(TIMEOUT_S) == 0
+            assert sub.wait_for(lambda s: s.rate.received + s.rate.undecodable >= len(seqs),
+                                timeout_s=TIMEOUT_S)  # fmt: skip
+            py = sub.stats().rate
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+            queryable.undeclare()
+        session.close()
+    assert [g["seq"] for g in got] == [q for q in seqs if q is not None]
+    assert got[-1]["rate_dps"] == [None, -0.25, 12.0]  # NaN printed as null
+    assert got[-1]["flags"] == int(StatusFlags.NON_FINITE)
+    assert all(g["flags"] == 0 for g in got[:-1])
+    rust = done["rate"]
+    expected = {"received": n, "gaps": 3, "missing": 2 + 3 + 5, "resets": 1, "duplicates": 1,
+                "undecodable": 1, "non_finite": 1}  # fmt: skip
+    assert {key: rust[key] for key in expected} == expected
+    assert {key: getattr(py, key) for key in expected} == expected
+    assert rust["latency_count"] == py.latency.count == n
 
 
 def _parser_values(argv: list[str]) -> dict[str, str]:
