@@ -137,3 +137,53 @@ def test_export_of_a_device_fits_its_cubic_at_rest(
     assert rms["auto"] == pytest.approx(auto_x["cubic_rms_dps"], rel=0.05)
     assert rms["auto"] < 0.5 * auto_x["raw_rms_dps"]
     assert rms["all"] > 3 * rms["auto"]  # fitted through the turns: pulled off
+
+
+def _x_scores(doc: dict[str, object]) -> dict[str, dict[str, float]]:
+    scores = doc["scores"]
+    assert isinstance(scores, list)
+    return {s["run"]: s["compensated"] for s in scores if s["axis"] == "x"}
+
+
+def test_evaluate_scores_the_rest_rows_like_the_same_runs_without_motion(
+    logs: dict[str, list[Path]], tmp_path: Path, capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Independent truth: the same simulated runs before the turns were added
+    (``_device_runs`` without ``with_rotations``), scored whole."""
+    moving = [str(p) for p in logs["imu-a"]]
+    cal = tmp_path / "cal.json"
+    assert main(["-q", "fit", *moving, "--out", str(cal), "--no-validation"]) == 0
+    still = [write_run(replace(r, name=f"imu-a-{r.name}"), tmp_path / f"{r.name}.csv")
+             for r in chamber_runs([10, 40], seed=0, rate_hz=5.0, hold_s=1200.0)]
+    docs = {}
+    for label, runs, mode in (("auto", moving, "auto"), ("all", moving, "all"),
+                              ("still", [str(p) for p in still], "all")):
+        out = tmp_path / f"{label}.json"
+        assert main(["-q", "evaluate", str(cal), *runs, "--rest", mode,
+                     "--json", str(out)]) == 0
+        docs[label] = json.loads(out.read_text())
+    assert "Rest detection (rows excluded from the scores)" in capsys.readouterr().err
+    for run in docs["auto"]["rest"]["runs"]:
+        assert len(run["segments"]) == len(TURNS_S)
+    assert docs["all"]["rest"] == {"mode": "all", "runs": []}
+    auto, every, truth = (_x_scores(docs[k]) for k in ("auto", "all", "still"))
+    assert auto.keys() == truth.keys() == every.keys()
+    for name, score in truth.items():
+        excluded = next(r["excluded_rows"] for r in docs["auto"]["rest"]["runs"]
+                        if r["run"] == name)
+        assert auto[name]["n"] == score["n"] - excluded
+        assert auto[name]["rms_dps"] == pytest.approx(score["rms_dps"], rel=0.05)
+        assert every[name]["rms_dps"] > 20 * score["rms_dps"]  # the turns, scored
+
+
+def test_diagnose_refuses_motion_and_names_it(
+    logs: dict[str, list[Path]], tmp_path: Path, capsys: pytest.CaptureFixture[str],
+) -> None:
+    runs = [str(p) for p in logs["imu-a"]]
+    out = tmp_path / "d.json"
+    assert main(["-q", "diagnose", *runs, "--no-simulation", "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "rest detection found motion in 2 of 2 runs" in err
+    for name in ("imu-a-heat-10min", "imu-a-heat-40min"):
+        assert f"{name}: 2 motion segments (69" in err  # the turns start at 700 s
+    assert "--rest all" in err and not out.exists()

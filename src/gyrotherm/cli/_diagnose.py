@@ -11,6 +11,7 @@ from typing import Any
 
 from gyrotherm._errors import ConfigError, RunFileError
 from gyrotherm.cli import _conventions as conv
+from gyrotherm.cli import _fitrest
 from gyrotherm.cli._common import load_runs
 from gyrotherm.cli._inputs import add_input_options, spec_from_args
 from gyrotherm.codecs import Run
@@ -60,6 +61,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     conv.check_runs(args.runs, command="diagnose")
     conv.check_json_target(args.json)
     runs = load(args.runs, quiet=quiet, spec=spec_from_args(args))
+    _fitrest.refuse_motion(args, runs, command="diagnose")
     start = time.perf_counter()
 
     def say(msg: str) -> None:
@@ -127,6 +129,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "axis its own selection (paper model where nothing is found); "
                    "coefficients refitted on the stored estimator's output")
     add_input_options(p)
+    _fitrest.add_rest_options(p, auto="auto: refuse runs in which rest detection finds "
+                              "motion (the diagnosis needs whole runs at rest)")
     p.set_defaults(func=cmd_diagnose)
 
 

@@ -28,12 +28,15 @@ DEVICE_KEY = "device_id"
 PLACEHOLDER = "{device}"
 
 
-def add_rest_options(parser: argparse.ArgumentParser) -> None:
+def add_rest_options(parser: argparse.ArgumentParser, *, use: str = "fit",
+                     auto: str | None = None) -> None:
+    """``--rest`` and its tuning options; ``use`` says what the rest rows feed
+    ("fit", "score"), ``auto`` overrides the help of ``--rest auto``."""
     d = RestConfig()
     g = parser.add_argument_group("rest detection (logs with motion)")
     g.add_argument("--rest", choices=("auto", "all"), default="auto",
-                   help="auto: fit only rows detected at rest (rate variance, high-pass "
-                   "rate, accelerometer); all: every row (default auto)")
+                   help=(auto or f"auto: {use} only rows detected at rest (rate variance, "
+                         "high-pass rate, accelerometer)") + "; all: every row (default auto)")
     g.add_argument("--rest-threshold", type=float, default=d.threshold,
                    help=f"robust z-score above which a window is motion (default {d.threshold:g})")
     g.add_argument("--rest-window-s", type=float, default=d.window_s,
@@ -59,10 +62,11 @@ def mask_motion(args: argparse.Namespace, runs: Sequence[Run],
     return out, reports
 
 
-def print_rest_report(reports: Sequence[RestReport], *, file: Any = None) -> None:
+def print_rest_report(reports: Sequence[RestReport], *, file: Any = None,
+                      use: str = "the fit") -> None:
     if not reports:
         return
-    print("Rest detection (rows excluded from the fit):", file=file)
+    print(f"Rest detection (rows excluded from {use}):", file=file)
     for rep in reports:
         print(f"  {rep.run}: {len(rep.segments)} segments, {rep.excluded_s:.1f} of "
               f"{rep.total_s:.1f} s ({100 * rep.excluded_fraction:.2f} %)", file=file)
@@ -70,6 +74,29 @@ def print_rest_report(reports: Sequence[RestReport], *, file: Any = None) -> Non
             print(f"    {s.start_s:10.2f} – {s.end_s:10.2f} s: {', '.join(s.reasons)}",
                   file=file)
     print(file=file)
+
+
+def refuse_motion(args: argparse.Namespace, runs: Sequence[Run], *, command: str) -> None:
+    """``--rest auto`` for commands that need every row (the diagnosis, ``fit
+    --effects``): a ConfigError naming each run with motion and its first segments."""
+    if args.rest == "all":
+        return
+    config = rest_config(args)
+    moving = [rep for rep in (rest_of_run(r, config) for r in runs) if rep.segments]
+    if not moving:
+        return
+    lines = []
+    for rep in moving:
+        spans = ", ".join(f"{s.start_s:.1f}–{s.end_s:.1f} s" for s in rep.segments[:3])
+        more = f" and {len(rep.segments) - 3} more" if len(rep.segments) > 3 else ""
+        lines.append(f"{rep.run}: {len(rep.segments)} motion segments ({spans}{more}), "
+                     f"{rep.excluded_s:.1f} of {rep.total_s:.1f} s")
+    raise ConfigError(
+        f"{command} needs the gyro at rest over whole runs (the effects' state runs "
+        "through every row), and rest detection found motion in "
+        f"{len(moving)} of {len(runs)} runs: " + "; ".join(lines) + ". Fit the paper "
+        "model on the rest rows with `gyrotherm fit` (--rest auto), or pass --rest all "
+        "if the gyro was in fact still (a vibrating bench) to use every row")
 
 
 def device_groups(runs: Sequence[Run],

@@ -64,10 +64,6 @@ def cmd_sim_chamber(args: argparse.Namespace) -> int:
     return 0
 
 
-def _features(args: argparse.Namespace, est: EstimatorConfig) -> list[RunFeatures]:
-    return _features_of(load_inputs(args), est, quiet=args.quiet)
-
-
 def _features_of(runs: list[Run], est: EstimatorConfig, *, quiet: bool) -> list[RunFeatures]:
     report = progress("estimating T and ΔT", quiet=quiet)
     out = []
@@ -225,7 +221,11 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     conv.check_calibration_first(args.calibration, args.runs, command="evaluate")
     conv.check_json_target(args.json)
     cal = load_calibration(args.calibration)
-    feats = _features(args, cal.estimator)
+    runs = load_inputs(args)
+    feats, reports = _fitrest.mask_motion(args, runs,
+                                          _features_of(runs, cal.estimator, quiet=args.quiet))
+    with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
+        _fitrest.print_rest_report(reports, use="the scores")
     scores = [s for f in feats for s in score(cal, f)]
     effects = {a: list(cal.effect_names(a)) for a in cal.axes}
     start = ("each run's first row (power-on: the effects' runtime state starts there, "
@@ -234,6 +234,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         conv.emit_json({"calibration": str(args.calibration), "model": cal.model.name,
                         "version": cal.version, "effects": effects,
                         **({"effects_state_start": start} if cal.version > 1 else {}),
+                        "rest": {"mode": args.rest, "runs": [r.to_dict() for r in reports]},
                         "scores": [s.to_dict() for s in scores]}, args.json)
     else:
         print(f"calibration {args.calibration}: model {cal.model.name}")
@@ -304,6 +305,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     e.add_argument("--report", metavar="DIR",
                    help="also write per-axis figures and report.md to DIR (default: none)")
     add_input_options(e)
+    _fitrest.add_rest_options(e, use="score")
     e.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("paper", help="reproduce Tables 1 and 2 on simulated chamber runs")
