@@ -126,3 +126,22 @@ def test_a_long_constant_rate_turn_is_motion() -> None:
     (lo, hi), = _excluded_spans(report.rest, t)
     assert 298.9 <= lo <= 300.0 and 419.9 <= hi <= 422.0  # ± one block and the guard
     assert "rate offset" in report.segments[0].reasons
+
+
+def test_a_fast_linear_drift_is_not_motion_at_the_ends_but_a_turn_still_is() -> None:
+    """A bias drifting 0.6 °/s per minute (a fast power-on ramp) under 0.002 °/s noise at
+    2 Hz: a window that went one-sided at the ends of the log lagged it by
+    0.01 °/s/s × 10 s = 0.1 °/s > 0.05 and called the first and last 10 s motion."""
+    rng = np.random.default_rng(11)
+    t = 5.0 + np.arange(900) * 0.5
+    drift = 0.01 * (t - t[0])
+    rates = {a: drift + rng.standard_normal(len(t)) * 0.002 for a in "xyz"}
+    assert detect_rest(t, rates).segments == ()
+    turn = (t >= 200.0) & (t < 230.0)
+    rates["x"] = rates["x"] + np.where(turn, 20.0 * np.sin(np.pi * (t - 200.0) / 30.0), 0.0)
+    report = detect_rest(t, rates)
+    (lo, hi), = _excluded_spans(report.rest, t)
+    # the turn is found; beside it the window is one-sided again, and this drift
+    # (far faster than a thermal one) widens the segment: by ≤ 30 s here
+    assert 170.0 <= lo <= 200.0 and 229.5 <= hi <= 260.0
+    assert report.excluded_s < 30.0 + 60.0

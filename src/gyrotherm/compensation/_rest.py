@@ -141,13 +141,22 @@ def _robust_z(f: FloatArray, at_rest: BoolArray, floor: float) -> FloatArray:
 
 
 def _running_median(mean: FloatArray, at_rest: BoolArray, half: int) -> FloatArray:
-    """Median of the rest blocks' means within ± ``half`` blocks (global median if none)."""
+    """Median of the rest blocks' means within ± ``half`` blocks (global median if none).
+
+    The window stays centred: the first and last ``half`` blocks use ± min(i, n−1−i)
+    blocks, so that a bias drifting linearly (a fast thermal ramp at power-on) leaves
+    no offset at the ends of the log, where a one-sided window would lag the drift by
+    slope × half a window."""
     vals = np.where(at_rest, mean, np.nan)
     padded = np.pad(vals, half, constant_values=np.nan)
     view = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-nan windows
         med = np.nanmedian(view, axis=1)
+        n = len(vals)
+        for i in (*range(min(half, n)), *range(max(half, n - half), n)):
+            h = min(i, n - 1 - i)
+            med[i] = np.nanmedian(vals[i - h:i + h + 1])
     fallback = float(np.median(mean[at_rest])) if np.any(at_rest) else float(np.median(mean))
     return np.where(np.isfinite(med), med, fallback)
 

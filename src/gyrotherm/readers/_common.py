@@ -120,8 +120,12 @@ def make_run(
         missing = "temperature" if not np.isfinite(temp).any() else "finite samples"
         raise RunFileError(f"{path}: {where}: no {missing} in {len(t)} sample(s)")
     nonfinite = int(np.count_nonzero(~finite))
-    rows, reordered, dupes = sort_unique(t[finite])
-    sel = np.flatnonzero(finite)[rows]
+    if finite.all() and (len(t) < 2 or bool(np.all(np.diff(t) > 0))):
+        sel: slice | NDArray[np.intp] = slice(None)  # the usual log: no copy of any column
+        reordered = dupes = 0
+    else:
+        rows, reordered, dupes = sort_unique(t[finite])
+        sel = np.flatnonzero(finite)[rows]
     extra: dict[str, FloatArray] = {}
     accel_missing = 0
     for a, v in (accel_mps2 or {}).items():
