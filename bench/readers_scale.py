@@ -1,7 +1,7 @@
 """A 1-hour 1 kHz flight log in each binary format through ``gyrotherm fit``: time and memory.
 
-    python bench/readers_scale.py                  # ulog, dataflash 3.6·10⁶; mcap 3.6·10⁵ rows
-    python bench/readers_scale.py --formats mcap --rows 3.6e6  # a whole hour of ROS 2 (≈ 10 min)
+    python bench/readers_scale.py                  # 3.6·10⁶ rows each (first run ≈ 10 min)
+    python bench/readers_scale.py --formats ulog --rows 3.6e5  # one format, 6 minutes of log
     python bench/readers_scale.py --keep-dir /tmp/readers      # reuse the generated logs
 
 Per format, one log of one gyro with N samples at 1 kHz (N = 3.6·10⁶ is an hour), the
@@ -40,7 +40,7 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 from scale import measure  # noqa: E402
 
 RATE_HZ = 1000.0
-DEFAULT_ROWS = {"ulog": 3.6e6, "dataflash": 3.6e6, "mcap": 3.6e5}
+DEFAULT_ROWS = 3.6e6
 SUFFIX = {"ulog": ".ulg", "dataflash": ".bin", "mcap": ".mcap"}
 
 
@@ -137,7 +137,7 @@ def main() -> int:
     ap.add_argument("--formats", nargs="+", choices=tuple(WRITERS), default=list(WRITERS),
                     help="formats to measure (default: all three)")
     ap.add_argument("--rows", type=float,
-                    help="samples per log (default: 3.6e6 for ulog and dataflash, 3.6e5 for mcap)")
+                    help="samples per log (default 3.6e6: one hour at 1 kHz)")
     ap.add_argument("--keep-dir", help="directory for the generated logs (kept, reused)")
     ap.add_argument("--generate", nargs=3, metavar=("FORMAT", "ROWS", "PATH"),
                     help=argparse.SUPPRESS)
@@ -151,7 +151,7 @@ def main() -> int:
     work.mkdir(parents=True, exist_ok=True)
     results: list[dict[str, Any]] = []
     for fmt in args.formats:
-        n = int(args.rows or DEFAULT_ROWS[fmt])
+        n = int(args.rows or DEFAULT_ROWS)
         log_path = work / f"gyro-{fmt}-{n}{SUFFIX[fmt]}"
         if not log_path.exists():  # in a child: this process stays small
             subprocess.run([sys.executable, __file__, "--generate", fmt, str(n), str(log_path)],
