@@ -44,9 +44,9 @@ DEFAULT_ROWS = 3.6e6
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--formats", nargs="+", choices=tuple(WRITERS), default=list(WRITERS),
-                    help="formats to measure (default: all three)")
+                    help="formats to measure (default: ulog dataflash mcap)")
     ap.add_argument("--rows", type=float,
-                    help="samples per log (default 3.6e6: one hour at 1 kHz)")
+                    help=f"samples per log (default {DEFAULT_ROWS:g}: one hour at 1 kHz)")
     ap.add_argument("--keep-dir", help="directory for the generated logs (kept, reused)")
     ap.add_argument("--generate", nargs=3, metavar=("FORMAT", "ROWS", "PATH"),
                     help=argparse.SUPPRESS)
