@@ -82,12 +82,16 @@ def test_motion_kept_biases_the_fit(logs: dict[str, list[Path]], tmp_path: Path)
     assert kept > 10 * masked
 
 
-def test_chamber_runs_fit_identically_with_and_without_detection(tmp_path: Path) -> None:
+def test_chamber_runs_fit_identically_with_and_without_detection(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str],
+) -> None:
     paths = [str(write_run(r, tmp_path / f"{r.name}.csv"))
              for r in chamber_runs([5, 30], seed=4, rate_hz=2.0, hold_s=900.0)]
     for mode in ("auto", "all"):
         assert main(["-q", "fit", *paths, "--out", str(tmp_path / f"{mode}.json"),
                      "--no-validation", "--rest", mode]) == 0
+        said = capsys.readouterr().out
+        assert ("Rest detection: every row at rest (2 runs)" in said) == (mode == "auto")
     auto = json.loads((tmp_path / "auto.json").read_text())
     every = json.loads((tmp_path / "all.json").read_text())
     for key in ("coefficients", "scaling", "range"):

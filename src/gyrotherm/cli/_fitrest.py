@@ -66,6 +66,9 @@ def print_rest_report(reports: Sequence[RestReport], *, file: Any = None,
                       use: str = "the fit") -> None:
     if not reports:
         return
+    if not any(rep.segments for rep in reports):
+        print(f"Rest detection: every row at rest ({len(reports)} runs)\n", file=file)
+        return
     print(f"Rest detection (rows excluded from {use}):", file=file)
     for rep in reports:
         print(f"  {rep.run}: {len(rep.segments)} segments, {rep.excluded_s:.1f} of "
