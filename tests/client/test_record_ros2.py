@@ -246,3 +246,10 @@ def test_a_sensor_name_ros_refuses(capsys: pytest.CaptureFixture[str]) -> None:
     assert record_main(["--vehicle", "v", "--sensor", "imu-0", "--ros2"]) == 2
     err = capsys.readouterr().err
     assert "--ros2: not a ROS 2 topic name: '/gyrotherm/imu-0/imu'" in err
+
+
+def test_without_xxhash_the_extra_is_named(monkeypatch: pytest.MonkeyPatch,
+                                          capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    monkeypatch.setitem(sys.modules, "xxhash", None)  # import xxhash → ImportError
+    assert record_main(["--vehicle", "v", "--sensor", "s", "--ros2"]) == 2
+    assert "pip install 'gyrotherm[ros2]'" in capsys.readouterr().err

@@ -144,6 +144,10 @@ def _ros_options(args: argparse.Namespace) -> str | None:
     args.ros_node_name = args.ros_node_name or ROS_NODE_NAME
     if args.ros2:
         try:
+            import xxhash  # noqa: F401  (rmw_zenoh's GIDs; the optional `ros2` extra)
+        except ImportError:
+            return "--ros2 needs the xxhash package: pip install 'gyrotherm[ros2]'"
+        try:
             check_names(args.sensor, domain_id=args.ros_domain_id,
                         namespace=args.ros_namespace, node_name=args.ros_node_name)
         except ValueError as exc:
