@@ -4,8 +4,10 @@ the per-message attachment. Pure functions, no I/O, no ROS installation.
 Checked against ros2/rmw_zenoh (rolling, changelog up to 0.10.4 of 2026-04-30; jazzy
 ≥ 0.2.4 has the same format) — docs/design.md @99a6a2bd,
 rmw_zenoh_cpp/src/detail/liveliness_utils.cpp @3411fdec, attachment_helpers.cpp
-@534747dc, rmw_publisher_data.cpp @3e19ec73, rmw_node_data.cpp @3411fdec, qos.cpp
-@7efeee2b, type_support_common.cpp (``_create_type_name``):
+@534747dc, rmw_publisher_data.cpp @3e19ec73, rmw_subscription_data.cpp @a72659a6 (a
+sample without a well-formed attachment is dropped; the encoding is ignored),
+rmw_node_data.cpp @3411fdec, qos.cpp @7efeee2b, type_support_common.cpp
+(``_create_type_name``):
 
 * **topic key** ``<domain_id>/<topic without leading/trailing '/'>/<type>/<hash>``,
   the type as DDS names it (``sensor_msgs::msg::dds_::Imu_``), the hash REP-2016's
