@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import queue
 import signal
 import subprocess
@@ -204,7 +205,8 @@ def test_sigterm_undeclares_the_tokens() -> None:
              "--connect", f"tcp/127.0.0.1:{port}", "--connect", lis.endpoint, "--ros2",
              "--ros-domain-id", "7", "--ros-namespace", "/robot1", "--ros-node-name", "br",
              "--json", "--calibration-timeout-s", "0.2"],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            env={**os.environ, "PYTHONFAULTHANDLER": "1"})  # fmt: skip
         try:
             assert proc.stderr is not None
             line = proc.stderr.readline()  # printed once subscribed
@@ -212,7 +214,11 @@ def test_sigterm_undeclares_the_tokens() -> None:
             declared = lis.token_events(zenoh.SampleKind.PUT, 4)
             assert lis.alive_tokens() == sorted(declared)
             proc.send_signal(signal.SIGTERM)
-            stdout, _ = proc.communicate(timeout=TIMEOUT_S * 3)
+            try:
+                stdout, _ = proc.communicate(timeout=TIMEOUT_S * 3)
+            except subprocess.TimeoutExpired:  # where it hangs: every thread's stack
+                proc.send_signal(signal.SIGABRT)
+                pytest.fail(f"no exit after SIGTERM:\n{proc.communicate(timeout=TIMEOUT_S)[1]}")
             assert sorted(lis.token_events(zenoh.SampleKind.DELETE, 4)) == sorted(declared)
             assert lis.alive_tokens() == []
         finally:

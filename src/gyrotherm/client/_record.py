@@ -118,11 +118,8 @@ def record_main(argv: Sequence[str] | None = None, *,
         return 2
     stop = threading.Event() if stop is None else stop
     if threading.current_thread() is threading.main_thread():
-        def _on_signal(signum: int, frame: FrameType | None) -> None:
-            stop.set()
-
         for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, _on_signal)
+            signal.signal(sig, stop_on_signal(stop))
     try:
         session = (open_session(config_file=args.zenoh_config) if args.zenoh_config
                    else open_session(connect=args.connect or DEFAULT_CONNECT))  # fmt: skip
@@ -131,6 +128,17 @@ def record_main(argv: Sequence[str] | None = None, *,
         return 2
     with session:
         return _record(args, session, stop, on_ready)
+
+
+def stop_on_signal(stop: threading.Event) -> Callable[[int, FrameType | None], None]:
+    """A signal handler that sets ``stop`` from a short-lived thread: the handler runs in
+    the main thread between two bytecodes, possibly while that thread holds the lock of
+    ``stop`` inside ``stop.wait()``, and ``stop.set()`` there would wait for it forever."""
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        threading.Thread(target=stop.set, name="record-stop", daemon=True).start()
+
+    return handler
 
 
 def _ros_options(args: argparse.Namespace) -> str | None:
