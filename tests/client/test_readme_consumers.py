@@ -1,5 +1,6 @@
-"""README "Consuming the rates outside Python": its record command parses, and its ROS 2
-(rosbags) block runs on an MCAP that ``McapSink`` wrote, printing the rates in rad/s."""
+"""README "Consuming the rates outside Python": its record commands parse (the ``--ros2``
+one into the topic its ``ros2 topic echo`` line names), and its ROS 2 (rosbags) block runs
+on an MCAP that ``McapSink`` wrote, printing the rates in rad/s."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ from pathlib import Path
 import pytest
 
 from gyrotherm.client._channels import Fanout, McapSink
-from gyrotherm.client._record import _parser
+from gyrotherm.client._record import _parser, _ros_options
+from gyrotherm.client._ros2 import check_names
 from gyrotherm.codecs._wire import RateMessage, StatusFlags
 
 README = Path(__file__).resolve().parents[2] / "README.md"
@@ -34,6 +36,21 @@ def test_the_record_command_parses() -> None:
     args = _parser().parse_args(argv[2:])
     assert args.mcap == "imu0.mcap" and args.foxglove_port == 8765 and args.sensor == "imu0"
     assert args.foxglove_host == "127.0.0.1"
+
+
+def test_the_ros2_live_command_parses() -> None:
+    blocks = [b for b in re.findall(r"```sh\n(.*?)```", _section(), re.S) if "--ros2" in b]
+    assert len(blocks) == 1
+    record, echo = [ln.split("#")[0] for ln in blocks[0].replace("\\\n", " ").splitlines()]
+    argv = shlex.split(record)
+    assert argv[:2] == ["gyrotherm", "record"]
+    args = _parser().parse_args(argv[2:])
+    assert _ros_options(args) is None
+    assert (args.ros2, args.ros_domain_id, args.ros_namespace) == (True, 0, "/")
+    assert args.ros_node_name == "gyrotherm_bridge"
+    topics = check_names(args.sensor, domain_id=0, namespace="/", node_name="gyrotherm_bridge")
+    assert shlex.split(echo) == ["RMW_IMPLEMENTATION=rmw_zenoh_cpp", "ros2", "topic", "echo",
+                                 topics[0]]  # fmt: skip
 
 
 def test_the_ros2_block_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

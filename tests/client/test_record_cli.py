@@ -65,3 +65,20 @@ def test_sigterm_finishes_the_file(tmp_path: Path) -> None:
     assert {x.name for x in s.schemas.values()} == {
         "sensor_msgs/msg/Imu", "sensor_msgs/msg/Temperature", "gyrotherm.State",
         "gyrotherm.Health"}
+
+
+def test_the_signal_handler_cannot_deadlock_on_the_stop_event() -> None:
+    """The handler runs in the main thread, maybe while ``stop.wait()`` holds the event's
+    lock there (``stop.set()`` in the handler then never returns): it must return without
+    that lock, and ``stop`` be set once the lock is free. In a process of its own, so that
+    a deadlock fails by timeout instead of hanging the suite."""
+    code = ("import signal, threading\n"
+            "from gyrotherm.client._record import stop_on_signal\n"
+            "stop = threading.Event()\n"
+            "with stop._cond:  # what Event.wait holds between its lock acquisitions\n"
+            "    stop_on_signal(stop)(signal.SIGTERM, None)\n"
+            "    print(stop.is_set())\n"
+            "print(stop.wait(20))\n")  # fmt: skip
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, timeout=TIMEOUT_S)  # fmt: skip
+    assert out.stdout.split() == ["False", "True"]

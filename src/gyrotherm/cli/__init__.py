@@ -26,7 +26,8 @@ def build_parser() -> argparse.ArgumentParser:
     _import.register(sub)
     _export.register(sub)
     sub.add_parser("listen", help="live view of a sensor's Zenoh stream (see: listen --help)")
-    sub.add_parser("record", help="record to MCAP (ROS 2 Imu) / serve Foxglove (record --help)")
+    sub.add_parser("record", help="record to MCAP (ROS 2 Imu) / serve Foxglove / "
+                   "publish over rmw_zenoh (record --help)")
     return _conventions.apply(parser)  # defaults in every help, -q after the subcommand
 
 

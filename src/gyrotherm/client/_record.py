@@ -1,5 +1,8 @@
-"""``gyrotherm record``: a daemon's streams into an MCAP file (ROS 2 messages), and/or live
-to Foxglove over WebSocket.
+"""``gyrotherm record``: a daemon's streams into an MCAP file (ROS 2 messages), live to
+Foxglove over WebSocket, and/or republished as a ROS 2 node over Zenoh (``--ros2``,
+rmw_zenoh_cpp's key expressions, liveliness tokens and attachment:
+:mod:`gyrotherm.client._ros2`). At least one of ``--mcap``, ``--foxglove-port``,
+``--ros2``.
 
 Client side, like ``gyrotherm listen``: subscribes to ``gyrotherm/<vehicle>/<sensor>/*``
 and writes the channels of :mod:`gyrotherm.client._channels` (sensor_msgs/Imu in rad/s,
@@ -11,7 +14,8 @@ within ``--calibration-timeout-s``). It stops after ``--duration-s``, after
 summary (``--json``: one JSON object on stdout).
 
 Exit status: 0 after a clean stop with at least one message recorded, 1 when nothing
-arrived, 2 on a usage or configuration error.
+arrived, 2 on a usage or configuration error (a ``--ros-*`` option without ``--ros2``,
+a sensor, namespace or node name that is no ROS 2 name).
 """
 
 from __future__ import annotations
@@ -31,14 +35,21 @@ from gyrotherm._errors import CalibrationError, ConfigError, DecodeError
 from gyrotherm._zenoh import DEFAULT_CONNECT, open_session
 from gyrotherm.client._channels import Fanout, McapSink, Sink
 from gyrotherm.client._ros import residual_variance_dps2
+from gyrotherm.client._ros2 import RmwZenohSink, check_names
 from gyrotherm.client._subscriber import Subscriber
+
+ROS_NODE_NAME = "gyrotherm_bridge"
+_ROS_OPTIONS = {"ros_domain_id": "--ros-domain-id", "ros_namespace": "--ros-namespace",
+                "ros_node_name": "--ros-node-name"}  # fmt: skip
 
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="gyrotherm record",
-        description="Record a gyrotherm daemon's streams as ROS 2 messages in MCAP "
-                    "and/or serve them live to Foxglove.")  # fmt: skip
+        description="Record a gyrotherm daemon's streams as ROS 2 messages in MCAP, serve "
+                    "them live to Foxglove, and/or republish them as a ROS 2 node over Zenoh "
+                    "(rmw_zenoh_cpp). Give at least one of --mcap, --foxglove-port, "
+                    "--ros2.")  # fmt: skip
     p.add_argument("--vehicle", required=True, help="vehicle name (key gyrotherm/<vehicle>/...)")
     p.add_argument("--sensor", required=True, help="sensor name")
     p.add_argument("--connect", action="append", default=None, metavar="ENDPOINT",
@@ -52,6 +63,17 @@ def _parser() -> argparse.ArgumentParser:
                    "default: no server)")
     p.add_argument("--foxglove-host", default="127.0.0.1",
                    help="address the Foxglove server binds (default 127.0.0.1, loopback)")
+    p.add_argument("--ros2", action="store_true",
+                   help="publish sensor_msgs/Imu (imu, imu_raw) and sensor_msgs/Temperature "
+                   "as a ROS 2 node on rmw_zenoh_cpp's key expressions and liveliness tokens, "
+                   "on the --connect session (default: off)")
+    p.add_argument("--ros-domain-id", type=int, default=None, metavar="N",
+                   help="with --ros2: ROS_DOMAIN_ID, 0..232 (default 0)")
+    p.add_argument("--ros-namespace", default=None, metavar="NS",
+                   help="with --ros2: node namespace; topics are NS/gyrotherm/<sensor>/imu, "
+                   "imu_raw, temperature (default /)")
+    p.add_argument("--ros-node-name", default=None, metavar="NAME",
+                   help=f"with --ros2: node name (default {ROS_NODE_NAME})")
     p.add_argument("--frame-id", default=None,
                    help="ROS header frame_id (default: the sensor name)")
     p.add_argument("--duration-s", type=float, default=None,
@@ -86,17 +108,18 @@ def record_main(argv: Sequence[str] | None = None, *,
     if formatter_class is not None:
         parser.formatter_class = formatter_class
     args = parser.parse_args(argv)
-    if args.mcap is None and args.foxglove_port is None:
-        print("gyrotherm record: error: give --mcap FILE and/or --foxglove-port PORT",
-              file=sys.stderr)  # fmt: skip
+    if args.mcap is None and args.foxglove_port is None and not args.ros2:
+        print("gyrotherm record: error: give at least one output: --mcap FILE, "
+              "--foxglove-port PORT and/or --ros2", file=sys.stderr)  # fmt: skip
+        return 2
+    error = _ros_options(args)
+    if error:
+        print(f"gyrotherm record: error: {error}", file=sys.stderr)
         return 2
     stop = threading.Event() if stop is None else stop
     if threading.current_thread() is threading.main_thread():
-        def _on_signal(signum: int, frame: FrameType | None) -> None:
-            stop.set()
-
         for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, _on_signal)
+            signal.signal(sig, stop_on_signal(stop))
     try:
         session = (open_session(config_file=args.zenoh_config) if args.zenoh_config
                    else open_session(connect=args.connect or DEFAULT_CONNECT))  # fmt: skip
@@ -105,6 +128,39 @@ def record_main(argv: Sequence[str] | None = None, *,
         return 2
     with session:
         return _record(args, session, stop, on_ready)
+
+
+def stop_on_signal(stop: threading.Event) -> Callable[[int, FrameType | None], None]:
+    """A signal handler that sets ``stop`` from a short-lived thread: the handler runs in
+    the main thread between two bytecodes, possibly while that thread holds the lock of
+    ``stop`` inside ``stop.wait()``, and ``stop.set()`` there would wait for it forever."""
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        threading.Thread(target=stop.set, name="record-stop", daemon=True).start()
+
+    return handler
+
+
+def _ros_options(args: argparse.Namespace) -> str | None:
+    """Fill the ``--ros-*`` defaults; the error text when one is given without ``--ros2``
+    or a name is not a ROS 2 name."""
+    given = [opt for dest, opt in _ROS_OPTIONS.items() if getattr(args, dest) is not None]
+    if given and not args.ros2:
+        return f"{', '.join(given)} only applies with --ros2"
+    args.ros_domain_id = 0 if args.ros_domain_id is None else args.ros_domain_id
+    args.ros_namespace = args.ros_namespace or "/"
+    args.ros_node_name = args.ros_node_name or ROS_NODE_NAME
+    if args.ros2:
+        try:
+            import xxhash  # noqa: F401  (rmw_zenoh's GIDs; the optional `ros2` extra)
+        except ImportError:
+            return "--ros2 needs the xxhash package: pip install 'gyrotherm[ros2]'"
+        try:
+            check_names(args.sensor, domain_id=args.ros_domain_id,
+                        namespace=args.ros_namespace, node_name=args.ros_node_name)
+        except ValueError as exc:
+            return f"--ros2: {exc}"
+    return None
 
 
 def _record(args: argparse.Namespace, session: Any, stop: threading.Event,
@@ -121,6 +177,11 @@ def _record(args: argparse.Namespace, session: Any, stop: threading.Event,
         fox = FoxgloveSink(host=args.foxglove_host, port=args.foxglove_port)
         server_port = fox.port
         sinks.append(fox)
+    ros: RmwZenohSink | None = None
+    if args.ros2:
+        ros = RmwZenohSink(session, domain_id=args.ros_domain_id, namespace=args.ros_namespace,
+                           node_name=args.ros_node_name)  # fmt: skip
+        sinks.append(ros)
     fan = Fanout(sinks, sensor=args.sensor, frame_id=args.frame_id, covariance_dps2=cov)
     rates = threading.Semaphore(0)
 
@@ -136,6 +197,9 @@ def _record(args: argparse.Namespace, session: Any, stop: threading.Event,
                 where = f" → {args.mcap}" if args.mcap else ""
                 live = ("" if server_port is None
                         else f", Foxglove ws://{args.foxglove_host}:{server_port}")
+                if ros is not None:
+                    live += (f", ROS 2 node {ros.namespace.rstrip('/')}/{ros.node_name} "
+                             f"domain {ros.domain_id} (rmw_zenoh)")
                 print(f"gyrotherm record: {sub.keys.rate.rsplit('/', 1)[0]}/*{where}{live}",
                       file=sys.stderr)  # fmt: skip
             if on_ready is not None:  # once the subscription delivers (health: 1 Hz)
@@ -147,7 +211,8 @@ def _record(args: argparse.Namespace, session: Any, stop: threading.Event,
     finally:
         fan.close()
     summary = {
-        "mcap": args.mcap, "foxglove_port": server_port, "duration_s": time.monotonic() - t0,
+        "mcap": args.mcap, "foxglove_port": server_port,
+        "ros2": None if ros is None else ros.summary(), "duration_s": time.monotonic() - t0,
         "calibration_id": cal_id, "angular_velocity_variance_dps2": list(cov),
         "messages": dict(sorted(fan.counts.items())),
         "rate": {"received": stats.rate.received, "gaps": stats.rate.gaps,
