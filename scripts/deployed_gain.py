@@ -95,14 +95,39 @@ class _Sink:
         pass
 
 
+ZERO_WINDOWS_S = (10.0, 60.0, 300.0)
+"""Boot-time zero windows tried (s at rest after the estimator's warm-up)."""
+
+
 @dataclass(frozen=True)
 class Streamed:
-    """Bias error (removed − true) of one calibration on one run, after warm-up."""
+    """Bias error (removed − true) of one calibration on one run, after warm-up; and,
+    per boot-time zero window (s), the RMS error with that zero (see :func:`zeroed`)."""
 
     rms_dps: float
     std_dps: float
     mean_dps: float
     rows: int
+    zeroed_rms_dps: dict[float, float]
+
+
+def zeroed(run: Run, removed: np.ndarray, ready: np.ndarray, window_s: float,
+           axis: str = "x") -> float:
+    """RMS error if the vehicle zeroed the gyro at boot, as ArduPilot's boot-time gyro
+    calibration does with the vehicle at rest: offset = mean(rate − removed bias) over
+    the first ``window_s`` seconds past the estimator warm-up, added to every later
+    removed bias. The zero also takes out the run's switch-on offset, so the truth is
+    then the whole slow bias the gyro outputs, true bias + switch-on offset (the
+    generator's metadata ``switch_on_offset_dps``); scored after the window."""
+    t = run.time_s
+    start = t[np.flatnonzero(ready)[0]]
+    window = ready & (t >= start) & (t < start + window_s)
+    after = ready & (t >= start + window_s)
+    rate = run.rates_dps[axis]
+    offset = float(np.mean(rate[window] - removed[window]))
+    truth = run.true_bias_dps[axis] + float(run.metadata["switch_on_offset_dps"])
+    err = removed[after] + offset - truth[after]
+    return float(np.sqrt(np.mean(err**2)))
 
 
 def stream_error(run: Run, calibration: Calibration, axis: str = "x") -> Streamed:
@@ -122,7 +147,9 @@ def stream_error(run: Run, calibration: Calibration, axis: str = "x") -> Streame
     ready = np.array([not (m.flags & StatusFlags.ESTIMATOR_WARMUP) for m in msgs])
     err = (removed - run.true_bias_dps[axis])[ready]
     return Streamed(rms_dps=float(np.sqrt(np.mean(err**2))), std_dps=float(np.std(err)),
-                    mean_dps=float(np.mean(err)), rows=int(ready.sum()))
+                    mean_dps=float(np.mean(err)), rows=int(ready.sum()),
+                    zeroed_rms_dps={w: zeroed(run, removed, ready, w, axis)
+                                    for w in ZERO_WINDOWS_S})
 
 
 def heating_part(run: Run) -> Run:
@@ -171,6 +198,10 @@ def one_effect(effect: str, s: Settings, seed: int = SEED) -> dict[str, Any]:
         "std_dps": {k: v.std_dps for k, v in errors.items()},
         "mean_dps": {k: v.mean_dps for k, v in errors.items()},
         "deployed_gain_std": errors["paper"].std_dps / errors["extended"].std_dps,
+        "zeroed": {str(w): {"rms_dps": {k: v.zeroed_rms_dps[w] for k, v in errors.items()},
+                            "deployed_gain": errors["paper"].zeroed_rms_dps[w]
+                            / errors["extended"].zeroed_rms_dps[w]}
+                   for w in ZERO_WINDOWS_S},
         "rows_scored": errors["paper"].rows,
         "fit_s": fit_s,
     }
@@ -203,6 +234,24 @@ def table(rows: Sequence[dict[str, Any]]) -> list[str]:
             f"{r['mean_dps']['paper']:+.4f} / {r['mean_dps']['extended']:+.4f} | "
             f"{r['deployed_gain_std']:.2f} "
             f"({100 * r['deployed_gain_std'] / r['offline_gain']:.0f} %) | {target} |")
+    return out
+
+
+def zero_table(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """With a boot-time zero (:func:`zeroed`): deployed gain (and / offline) per window."""
+    head = " | ".join(f"zero {w:g} s: gain (/ offline), RMS paper / extended °/s"
+                      for w in ZERO_WINDOWS_S)
+    out = [f"| injected | offline gain | no zero: gain (/ offline) | {head} |",
+           "|---|---|---|" + "---|" * len(ZERO_WINDOWS_S)]
+    for r in rows:
+        cells = []
+        for w in ZERO_WINDOWS_S:
+            z = r["zeroed"][str(w)]
+            share = 100 * z["deployed_gain"] / r["offline_gain"]
+            cells.append(f"{z['deployed_gain']:.2f} ({share:.0f} %), "
+                         f"{z['rms_dps']['paper']:.4f} / {z['rms_dps']['extended']:.4f}")
+        out.append(f"| {r['effect']} | {r['offline_gain']:.2f} | {r['deployed_gain']:.2f} "
+                   f"({100 * r['deployed_over_offline']:.0f} %) | " + " | ".join(cells) + " |")
     return out
 
 
@@ -243,6 +292,8 @@ def main(argv: Sequence[str] | None = None) -> int:
           f"{elapsed:.0f} s")
     print()
     print("\n".join(table(rows)))
+    print()
+    print("\n".join(zero_table(rows)))
     if args.json:
         out = Path(args.json)
         out.parent.mkdir(parents=True, exist_ok=True)

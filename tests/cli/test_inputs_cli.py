@@ -86,6 +86,25 @@ def test_import_several_devices_into_a_directory(tmp_path: Path) -> None:
     np.testing.assert_array_equal(a.rates_dps["x"], [1.0, 3.0])
 
 
+def test_import_json_lists_what_was_written(tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    src = tmp_path / "two.csv"
+    src.write_text("t;dev;temp;gx\n0;a;20;1\n0.5;b;30;2\n1;a;21;3\n1.5;b;31;4\n",
+                   encoding="utf-8")
+    cols = ["--columns", "time=t:s", "temperature=temp:degC", "x=gx:dps", "device=dev"]
+    assert main(["-q", "import", str(src), "--out", str(tmp_path / "runs"), *cols,
+                 "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)  # the whole stdout is the JSON
+    assert [(w["path"], w["run"], w["rows"], w["device_id"], w["temperature_c"])
+            for w in doc["written"]] == [
+        (str(tmp_path / "runs" / "two-a.csv"), "two:a", 2, "a", [20.0, 21.0]),
+        (str(tmp_path / "runs" / "two-b.csv"), "two:b", 2, "b", [30.0, 31.0])]
+    assert all(w["axes"] == ["x"] and w["source"] == str(src) for w in doc["written"])
+    assert main(["-q", "import", str(src), "--out", str(tmp_path / "again"), *cols,
+                 "--json", str(tmp_path / "runs" / "two-a.csv")]) == 2  # never over a run
+    assert read_run(tmp_path / "runs" / "two-a.csv").name == "two:a"
+
+
 def test_import_and_fit_candump_with_user_dbc(tmp_path: Path) -> None:
     log, dbc, signals = user_log(tmp_path)
     can = ["--dbc", str(dbc), "--signals", str(signals)]

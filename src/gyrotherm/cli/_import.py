@@ -19,6 +19,7 @@ from pathlib import Path
 
 from gyrotherm import __version__
 from gyrotherm._errors import ConfigError, RunFileError
+from gyrotherm.cli import _conventions as conv
 from gyrotherm.cli._inputs import add_input_options, load_inputs
 from gyrotherm.codecs import Run, write_run
 
@@ -49,15 +50,24 @@ def _targets(out: Path, runs: list[Run]) -> list[Path]:
 
 
 def cmd_import(args: argparse.Namespace) -> int:
+    conv.check_json_target(args.json)
     runs = load_inputs(args)
     out = Path(args.out)
+    written = []
     for run, path in zip(runs, _targets(out, runs), strict=True):
         path.parent.mkdir(parents=True, exist_ok=True)
         write_run(_with_provenance(run), path)
-        axes = ",".join(run.axes)
-        print(f"wrote {path} ({len(run)} rows, axes {axes}, "
-              f"{run.temperature_c.min():.2f}…{run.temperature_c.max():.2f} °C, "
-              f"from {run.source} [{run.metadata.get('format', '?')}])")
+        t_lo, t_hi = float(run.temperature_c.min()), float(run.temperature_c.max())
+        fmt = run.metadata.get("format", "?")
+        written.append({"path": str(path), "run": run.name, "rows": len(run),
+                        "axes": list(run.axes), "temperature_c": [t_lo, t_hi],
+                        "source": run.source, "format": fmt,
+                        "device_id": run.metadata.get("device_id", "")})
+        if not args.json:
+            print(f"wrote {path} ({len(run)} rows, axes {','.join(run.axes)}, "
+                  f"{t_lo:.2f}…{t_hi:.2f} °C, from {run.source} [{fmt}])")
+    if args.json:
+        conv.emit_json({"written": written}, args.json)
     return 0
 
 
@@ -70,5 +80,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--out", required=True, metavar="FILE_OR_DIR",
                    help="a .csv file (exactly one run) or a directory (one file per run; "
                    "created with its parents)")
+    conv.add_json_option(p, what="the run files written (path, run, rows, axes, °C range, "
+                         "source, format, device id)")
     add_input_options(p)
     p.set_defaults(func=cmd_import)
