@@ -18,7 +18,7 @@ its temperature readout, written with each format's own layout and not by gyroth
 
 Then ``gyrotherm fit LOG --no-validation`` (rest detection on) runs as a child
 process; wall time (s) and the child's peak RSS (MB, ``wait4``) are recorded, as in
-``bench/scale.py``. Prints one JSON object on stdout, a table on stderr.
+``bench/scale.py``. Prints one JSON object on stdout and a line per format on stderr.
 """
 
 from __future__ import annotations
@@ -47,7 +47,8 @@ def main() -> int:
                     help="formats to measure (default: ulog dataflash mcap)")
     ap.add_argument("--rows", type=float,
                     help=f"samples per log (default {DEFAULT_ROWS:g}: one hour at 1 kHz)")
-    ap.add_argument("--keep-dir", help="directory for the generated logs (kept, reused)")
+    ap.add_argument("--keep-dir", help="directory for the generated logs (kept, reused; "
+                    "default: a temporary directory, removed)")
     ap.add_argument("--generate", nargs=3, metavar=("FORMAT", "ROWS", "PATH"),
                     help=argparse.SUPPRESS)
     args = ap.parse_args()

@@ -191,3 +191,40 @@ def test_diagnose_refuses_motion_and_names_it(
     for name in ("imu-a-heat-10min", "imu-a-heat-40min"):
         assert f"{name}: 2 motion segments (69" in err  # the turns start at 700 s
     assert "--rest all" in err and not out.exists()
+
+
+def test_fit_effects_refuses_motion_with_the_same_message(
+    logs: dict[str, list[Path]], tmp_path: Path, capsys: pytest.CaptureFixture[str],
+) -> None:
+    runs = [str(p) for p in logs["imu-a"]]
+    assert main(["-q", "fit", *runs, "--out", str(tmp_path / "c.json"), "--effects",
+                 "warmup"]) == 2
+    err = capsys.readouterr().err
+    assert "fit --effects needs the gyro at rest" in err
+    assert "imu-a-heat-10min: 2 motion segments (69" in err
+    assert not (tmp_path / "c.json").exists()
+
+
+def test_runs_too_short_for_detection_are_used_whole_and_said_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str],
+) -> None:
+    """A 6-row run (detection needs 10) is scored on every row, with a note; the
+    score equals the one with --rest all."""
+    (run,) = chamber_runs([5], seed=2, rate_hz=1.0, hold_s=600.0)
+    cal = tmp_path / "cal.json"
+    assert main(["-q", "fit", str(write_run(run, tmp_path / "long.csv")), "--out", str(cal),
+                 "--no-validation", "--model", "t2"]) == 0
+    short = write_run(run.slice(0, 6), tmp_path / "short.csv")
+    docs = {}
+    for mode in ("auto", "all"):
+        out = tmp_path / f"{mode}.json"
+        assert main(["-q", "evaluate", str(cal), str(short), "--rest", mode,
+                     "--json", str(out)]) == 0
+        docs[mode] = json.loads(out.read_text())
+    (rep,) = docs["auto"]["rest"]["runs"]
+    assert rep["note"] == "6 rows, too few for rest detection (at least 10): every row used"
+    said = capsys.readouterr().err
+    assert "Rest detection: heat-05min: 6 rows, too few for rest detection" in said
+    assert "every row at rest" not in said  # nothing was detected, nothing claimed
+    assert docs["auto"]["scores"] == docs["all"]["scores"]
+    assert all(s["compensated"]["n"] == 6 for s in docs["auto"]["scores"])

@@ -103,6 +103,12 @@ def test_import_json_lists_what_was_written(tmp_path: Path,
     assert main(["-q", "import", str(src), "--out", str(tmp_path / "again"), *cols,
                  "--json", str(tmp_path / "runs" / "two-a.csv")]) == 2  # never over a run
     assert read_run(tmp_path / "runs" / "two-a.csv").name == "two:a"
+    capsys.readouterr()
+    # nor over a run file this very import is about to write: refused before writing
+    assert main(["-q", "import", str(src), "--out", str(tmp_path / "new"), *cols,
+                 "--json", str(tmp_path / "new" / "two-b.csv")]) == 2
+    assert "one of the run files this import writes" in capsys.readouterr().err
+    assert not list((tmp_path / "new").glob("*.csv"))  # nothing written
 
 
 def test_import_and_fit_candump_with_user_dbc(tmp_path: Path) -> None:

@@ -145,3 +145,17 @@ def test_a_fast_linear_drift_is_not_motion_at_the_ends_but_a_turn_still_is() -> 
     # (far faster than a thermal one) widens the segment: by ≤ 30 s here
     assert 170.0 <= lo <= 200.0 and 229.5 <= hi <= 260.0
     assert report.excluded_s < 30.0 + 60.0
+
+
+def test_a_turn_that_starts_the_log_is_dropped_at_the_default_min_segment() -> None:
+    """The running median is centred at the ends, so a constant-rate turn at t = 0 shows no
+    offset; its stop is a step, and the stretch before it is shorter than the 30-s
+    minimum: excluded as "short rest" (docs/export.md, the limits)."""
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 600.0, 0.1)
+    rates = {a: rng.standard_normal(len(t)) * 0.01 for a in "xyz"}
+    rates["x"][t < 10.0] += 0.5
+    report = detect_rest(t, rates)
+    (lo, hi), = _excluded_spans(report.rest, t)
+    assert lo == 0.0 and 10.0 <= hi <= 12.5
+    assert "short rest" in report.segments[0].reasons

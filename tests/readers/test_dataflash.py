@@ -77,6 +77,19 @@ def test_truncated_log_reads_whole_messages(tmp_path: Path) -> None:
     assert i0.metadata["messages_cut_at_end"] == "1"
 
 
+def test_a_log_whose_only_imu_message_is_cut_is_an_error_naming_the_file(
+    tmp_path: Path,
+) -> None:
+    imu = dataflashkit.IMU
+    one = [(imu, [5_000_000, 0, 0.01, 0.0, -0.5, 0.0, 0.0, -9.81, 0, 0, 35.0, 1, 1, 400, 400])]
+    data = dataflashkit.log([imu], one)
+    p = tmp_path / "cut1.bin"
+    p.write_bytes(data[:-5])  # the one IMU message loses its last 5 bytes
+    with pytest.raises(RunFileError,
+                       match=r"cut1\.bin: every IMU message \(IMU: 1\) is cut short"):
+        read_dataflash(p)
+
+
 @pytest.mark.parametrize(("content", "pattern"), [
     (b"", r"empty\.bin: not a readable ArduPilot DataFlash log"),
     (b"not a dataflash log at all\n" * 20, r"empty\.bin: no IMU message .*formats defined"),

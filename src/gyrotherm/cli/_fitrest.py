@@ -56,7 +56,7 @@ def mask_motion(args: argparse.Namespace, runs: Sequence[Run],
     if args.rest == "all":
         return list(feats), []
     config = rest_config(args)
-    reports = [rest_of_run(r, config) for r in runs]
+    reports = [rest_of_run(r, config, short="keep") for r in runs]
     out = [f if rep.rest.all() else replace(f, rest=rep.rest)
            for f, rep in zip(feats, reports, strict=True)]
     return out, reports
@@ -66,8 +66,15 @@ def print_rest_report(reports: Sequence[RestReport], *, file: Any = None,
                       use: str = "the fit") -> None:
     if not reports:
         return
+    for rep in reports:
+        if rep.note:
+            print(f"Rest detection: {rep.run}: {rep.note}", file=file)
     if not any(rep.segments for rep in reports):
-        print(f"Rest detection: every row at rest ({len(reports)} runs)\n", file=file)
+        n = sum(1 for rep in reports if not rep.note)
+        if n:
+            print(f"Rest detection: every row at rest ({n} run{'s' if n > 1 else ''})",
+                  file=file)
+        print(file=file)
         return
     print(f"Rest detection (rows excluded from {use}):", file=file)
     for rep in reports:
@@ -85,7 +92,8 @@ def refuse_motion(args: argparse.Namespace, runs: Sequence[Run], *, command: str
     if args.rest == "all":
         return
     config = rest_config(args)
-    moving = [rep for rep in (rest_of_run(r, config) for r in runs) if rep.segments]
+    moving = [rep for rep in (rest_of_run(r, config, short="keep") for r in runs)
+              if rep.segments]
     if not moving:
         return
     lines = []

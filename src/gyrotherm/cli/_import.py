@@ -53,8 +53,13 @@ def cmd_import(args: argparse.Namespace) -> int:
     conv.check_json_target(args.json)
     runs = load_inputs(args)
     out = Path(args.out)
+    targets = _targets(out, runs)
+    if args.json not in (None, conv.STDOUT) and Path(args.json).resolve() in {
+            p.resolve() for p in targets}:
+        raise ConfigError(f"--json {args.json}: that is one of the run files this import "
+                          "writes; give the JSON another name")
     written = []
-    for run, path in zip(runs, _targets(out, runs), strict=True):
+    for run, path in zip(runs, targets, strict=True):
         path.parent.mkdir(parents=True, exist_ok=True)
         write_run(_with_provenance(run), path)
         t_lo, t_hi = float(run.temperature_c.min()), float(run.temperature_c.max())

@@ -80,6 +80,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
     conv.check_runs(args.runs, command="fit")
     conv.check_json_target(args.json)
     runs = load_inputs(args)
+    if names:
+        _fitrest.refuse_motion(args, runs, command="fit --effects")
     feats, reports = _fitrest.mask_motion(args, runs, _features_of(runs, est, quiet=args.quiet))
     groups = _fitrest.device_groups(runs, feats)
     paths = {device: conv.output_path(_fitrest.calibration_path(args.out, device, len(groups)),
@@ -87,9 +89,9 @@ def cmd_fit(args: argparse.Namespace) -> int:
     with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
         _fitrest.print_rest_report(reports)
     if names:
-        if len(groups) > 1 or any(f.rest is not None for f in feats):
-            raise ConfigError("--effects fits one device on rows at rest only: these runs "
-                              "hold several devices or motion (use --rest all, or split)")
+        if len(groups) > 1:
+            raise ConfigError(f"--effects fits one device: these runs hold {len(groups)} "
+                              f"({', '.join(repr(g) for g in groups)}); fit each apart")
         return _fit_effects(args, est, feats, names)
     written = [_fit_device(args, est, group, device, paths[device], several=len(groups) > 1)
                for device, group in groups.items()]

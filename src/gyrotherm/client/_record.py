@@ -169,20 +169,25 @@ def _record(args: argparse.Namespace, session: Any, stop: threading.Event,
         cov, cal_id = _covariance(probe, args.calibration_timeout_s)
     sinks: list[Sink] = []
     server_port = None
-    if args.mcap is not None:
-        sinks.append(McapSink(args.mcap))
-    if args.foxglove_port is not None:
-        from gyrotherm.client._foxglove import FoxgloveSink  # lazy: optional foxglove-sdk
-
-        fox = FoxgloveSink(host=args.foxglove_host, port=args.foxglove_port)
-        server_port = fox.port
-        sinks.append(fox)
     ros: RmwZenohSink | None = None
-    if args.ros2:
-        ros = RmwZenohSink(session, domain_id=args.ros_domain_id, namespace=args.ros_namespace,
-                           node_name=args.ros_node_name)  # fmt: skip
-        sinks.append(ros)
-    fan = Fanout(sinks, sensor=args.sensor, frame_id=args.frame_id, covariance_dps2=cov)
+    try:  # a sink that fails to open closes those opened before it (file, server, tokens)
+        if args.mcap is not None:
+            sinks.append(McapSink(args.mcap))
+        if args.foxglove_port is not None:
+            from gyrotherm.client._foxglove import FoxgloveSink  # lazy: optional foxglove-sdk
+
+            fox = FoxgloveSink(host=args.foxglove_host, port=args.foxglove_port)
+            server_port = fox.port
+            sinks.append(fox)
+        if args.ros2:
+            ros = RmwZenohSink(session, domain_id=args.ros_domain_id,
+                               namespace=args.ros_namespace, node_name=args.ros_node_name)
+            sinks.append(ros)
+        fan = Fanout(sinks, sensor=args.sensor, frame_id=args.frame_id, covariance_dps2=cov)
+    except BaseException:
+        for sink in reversed(sinks):
+            sink.close()
+        raise
     rates = threading.Semaphore(0)
 
     def on_rate(msg: Any) -> None:

@@ -98,6 +98,8 @@ class RestReport:
     total_s: float
     noise_dps: Mapping[str, float]
     """Per axis: the robust rate noise σ at rest, √(median v_ab), °/s."""
+    note: str = ""
+    """Why detection did not run (too few rows), when it did not."""
 
     @property
     def excluded_fraction(self) -> float:
@@ -109,7 +111,8 @@ class RestReport:
                 "excluded_s": self.excluded_s, "total_s": self.total_s,
                 "excluded_fraction": self.excluded_fraction,
                 "noise_dps": dict(self.noise_dps),
-                "segments": [s.to_dict() for s in self.segments]}
+                "segments": [s.to_dict() for s in self.segments],
+                **({"note": self.note} if self.note else {})}
 
 
 def _blocks(time_s: FloatArray, config: RestConfig) -> NDArray[np.intp]:
@@ -273,9 +276,21 @@ def detect_rest(
                       noise_dps=noise)
 
 
-def rest_of_run(run: Run, config: RestConfig | None = None) -> RestReport:
+def rest_of_run(run: Run, config: RestConfig | None = None, *,
+                short: str = "refuse") -> RestReport:
     """:func:`detect_rest` on a run, with its accelerometer when ``Run.extra`` has
-    ``accel_x_mps2``, ``accel_y_mps2`` and ``accel_z_mps2``."""
+    ``accel_x_mps2``, ``accel_y_mps2`` and ``accel_z_mps2``.
+
+    A run with fewer than 2 × ``min_rows`` rows: ``short="refuse"`` raises
+    ConfigError (as :func:`detect_rest`), ``short="keep"`` returns a report with every
+    row at rest and a ``note`` saying why."""
+    config = config or RestConfig()
+    if short == "keep" and len(run) < 2 * config.min_rows:
+        t = run.time_s
+        return RestReport(run=run.name, rest=np.ones(len(run), dtype=bool), segments=(),
+                          excluded_s=0.0, total_s=float(t[-1] - t[0]) if len(t) else 0.0,
+                          noise_dps={}, note=f"{len(run)} rows, too few for rest detection "
+                          f"(at least {2 * config.min_rows}): every row used")
     accel = None
     if all(k in run.extra for k in ACCEL_KEYS):
         x, y, z = (run.extra[k] for k in ACCEL_KEYS)

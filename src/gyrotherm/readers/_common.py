@@ -121,7 +121,7 @@ def make_run(
         raise RunFileError(f"{path}: {where}: no {missing} in {len(t)} sample(s)")
     nonfinite = int(np.count_nonzero(~finite))
     if finite.all() and (len(t) < 2 or bool(np.all(np.diff(t) > 0))):
-        sel: slice | NDArray[np.intp] = slice(None)  # the usual log: no copy of any column
+        sel: slice | NDArray[np.intp] = slice(None)  # the usual log: no argsort, no gather
         reordered = dupes = 0
     else:
         rows, reordered, dupes = sort_unique(t[finite])

@@ -56,7 +56,7 @@ def _open(path: Path) -> Any:
 
 _NUMPY = {"b": "i1", "B": "u1", "h": "<i2", "H": "<u2", "i": "<i4", "I": "<u4", "q": "<i8",
           "Q": "<u8", "e": "<f2", "f": "<f4", "d": "<f8"}
-_CHUNK = 1 << 16  # messages decoded per numpy gather (bounds the index arrays' memory)
+_CHUNK = 1 << 14  # messages decoded per numpy gather: its index is _CHUNK × len int64
 
 
 def _dtype(path: Path, name: str, msg_struct: str) -> np.dtype[np.void]:
@@ -108,30 +108,10 @@ def read_dataflash(path: str | os.PathLike[str]) -> list[Run]:
     """
     p = Path(path)
     log = _open(p)
-    present = [m for m in MESSAGES if m in log.name_to_id and len(log.offsets[
-        log.name_to_id[m]]) > 0]
-    if not present:
-        seen = sorted(f.name for f in log.formats.values())
-        raise RunFileError(f"{p}: no IMU message (of {list(MESSAGES)}) in the log; message "
-                           f"formats defined: {seen or 'none (not a DataFlash log?)'}")
-    parts: list[tuple[int, str, dict[str, FloatArray]]] = []
-    cut = 0
-    offsets = {name: np.asarray(log.offsets[log.name_to_id[name]], dtype=np.int64)
-               for name in present}
-    log.offsets = None  # pymavlink's index, a Python int per message: 400 MB for 3.6·10⁶
-    for name in present:
-        cols, n_cut = _decode(p, log, name, offsets.pop(name))
-        cut += n_cut
-        instances = np.unique(cols["I"]).astype(int) if "I" in cols else None
-        if instances is not None and len(instances) > 1:
-            for inst in instances:
-                sel = cols["I"] == inst
-                parts.append((int(inst), name, {c: v[sel] for c, v in cols.items()}))
-        elif instances is not None:
-            parts.append((int(instances[0]), name, cols))
-        else:
-            parts.append((MESSAGES.index(name), name, cols))
-        del cols
+    try:
+        parts, cut = _parts(p, log)
+    finally:
+        log.close()  # the mmap and the file handle
     sha = sha256_of(p)
     runs = []
     for inst, name, cols in sorted(parts, key=lambda x: x[0]):
@@ -157,6 +137,40 @@ def read_dataflash(path: str | os.PathLike[str]) -> list[Run]:
             accel_mps2={ax: cols[c] for ax, c in zip("xyz", _ACCEL, strict=True)},
             metadata=meta, sha256=sha))
     return runs
+
+
+def _parts(p: Path, log: Any) -> tuple[list[tuple[int, str, dict[str, FloatArray]]], int]:
+    """(instance, message, columns) per IMU instance, and the messages cut at the end."""
+    present = [m for m in MESSAGES if m in log.name_to_id and len(log.offsets[
+        log.name_to_id[m]]) > 0]
+    if not present:
+        seen = sorted(f.name for f in log.formats.values())
+        raise RunFileError(f"{p}: no IMU message (of {list(MESSAGES)}) in the log; message "
+                           f"formats defined: {seen or 'none (not a DataFlash log?)'}")
+    parts: list[tuple[int, str, dict[str, FloatArray]]] = []
+    cut = 0
+    offsets = {name: np.asarray(log.offsets[log.name_to_id[name]], dtype=np.int64)
+               for name in present}
+    log.offsets = None  # pymavlink's index: a Python int per message, 36 bytes each
+    for name in present:
+        cols, n_cut = _decode(p, log, name, offsets.pop(name))
+        cut += n_cut
+        if len(cols[_GYRO[0]]) == 0:  # every one of them cut by the end of the file
+            continue
+        instances = np.unique(cols["I"]).astype(int) if "I" in cols else None
+        if instances is not None and len(instances) > 1:
+            for inst in instances:
+                sel = cols["I"] == inst
+                parts.append((int(inst), name, {c: v[sel] for c, v in cols.items()}))
+        elif instances is not None:
+            parts.append((int(instances[0]), name, cols))
+        else:
+            parts.append((MESSAGES.index(name), name, cols))
+        del cols
+    if not parts:
+        raise RunFileError(f"{p}: every IMU message ({', '.join(present)}: {cut}) is cut "
+                           "short by the end of the file: nothing to read")
+    return parts, cut
 
 
 def _layout(path: Path, name: str, columns: list[str]) -> tuple[str, str]:
