@@ -61,7 +61,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     conv.check_runs(args.runs, command="diagnose")
     conv.check_json_target(args.json)
     runs = load(args.runs, quiet=quiet, spec=spec_from_args(args))
-    _fitrest.refuse_motion(args, runs, command="diagnose")
+    _fitrest.refuse_motion(_fitrest.rest_reports(args, runs), command="diagnose")
     start = time.perf_counter()
 
     def say(msg: str) -> None:

@@ -50,16 +50,22 @@ def rest_config(args: argparse.Namespace) -> RestConfig:
                       min_segment_s=args.rest_min_segment_s)
 
 
-def mask_motion(args: argparse.Namespace, runs: Sequence[Run],
-                feats: Sequence[RunFeatures]) -> tuple[list[RunFeatures], list[RestReport]]:
-    """Features with the motion rows masked (``--rest auto``) and the reports."""
+def rest_reports(args: argparse.Namespace, runs: Sequence[Run]) -> list[RestReport]:
+    """Rest detection on every run (``--rest auto``; none with ``--rest all``); a run
+    too short for it is kept whole, with a note."""
     if args.rest == "all":
-        return list(feats), []
+        return []
     config = rest_config(args)
-    reports = [rest_of_run(r, config, short="keep") for r in runs]
-    out = [f if rep.rest.all() else replace(f, rest=rep.rest)
-           for f, rep in zip(feats, reports, strict=True)]
-    return out, reports
+    return [rest_of_run(r, config, short="keep") for r in runs]
+
+
+def mask_motion(feats: Sequence[RunFeatures],
+                reports: Sequence[RestReport]) -> list[RunFeatures]:
+    """Features with the motion rows of :func:`rest_reports` masked (as given without)."""
+    if not reports:
+        return list(feats)
+    return [f if rep.rest.all() else replace(f, rest=rep.rest)
+            for f, rep in zip(feats, reports, strict=True)]
 
 
 def print_rest_report(reports: Sequence[RestReport], *, file: Any = None,
@@ -86,14 +92,10 @@ def print_rest_report(reports: Sequence[RestReport], *, file: Any = None,
     print(file=file)
 
 
-def refuse_motion(args: argparse.Namespace, runs: Sequence[Run], *, command: str) -> None:
+def refuse_motion(reports: Sequence[RestReport], *, command: str) -> None:
     """``--rest auto`` for commands that need every row (the diagnosis, ``fit
     --effects``): a ConfigError naming each run with motion and its first segments."""
-    if args.rest == "all":
-        return
-    config = rest_config(args)
-    moving = [rep for rep in (rest_of_run(r, config, short="keep") for r in runs)
-              if rep.segments]
+    moving = [rep for rep in reports if rep.segments]
     if not moving:
         return
     lines = []
@@ -105,7 +107,7 @@ def refuse_motion(args: argparse.Namespace, runs: Sequence[Run], *, command: str
     raise ConfigError(
         f"{command} needs the gyro at rest over whole runs (the effects' state runs "
         "through every row), and rest detection found motion in "
-        f"{len(moving)} of {len(runs)} runs: " + "; ".join(lines) + ". Fit the paper "
+        f"{len(moving)} of {len(reports)} runs: " + "; ".join(lines) + ". Fit the paper "
         "model on the rest rows with `gyrotherm fit` (--rest auto), or pass --rest all "
         "if the gyro was in fact still (a vibrating bench) to use every row")
 

@@ -80,9 +80,10 @@ def cmd_fit(args: argparse.Namespace) -> int:
     conv.check_runs(args.runs, command="fit")
     conv.check_json_target(args.json)
     runs = load_inputs(args)
+    reports = _fitrest.rest_reports(args, runs)
     if names:
-        _fitrest.refuse_motion(args, runs, command="fit --effects")
-    feats, reports = _fitrest.mask_motion(args, runs, _features_of(runs, est, quiet=args.quiet))
+        _fitrest.refuse_motion(reports, command="fit --effects")
+    feats = _fitrest.mask_motion(_features_of(runs, est, quiet=args.quiet), reports)
     groups = _fitrest.device_groups(runs, feats)
     paths = {device: conv.output_path(_fitrest.calibration_path(args.out, device, len(groups)),
                                       option="--out") for device in groups}
@@ -224,8 +225,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     conv.check_json_target(args.json)
     cal = load_calibration(args.calibration)
     runs = load_inputs(args)
-    feats, reports = _fitrest.mask_motion(args, runs,
-                                          _features_of(runs, cal.estimator, quiet=args.quiet))
+    reports = _fitrest.rest_reports(args, runs)
+    feats = _fitrest.mask_motion(_features_of(runs, cal.estimator, quiet=args.quiet), reports)
     with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
         _fitrest.print_rest_report(reports, use="the scores")
     scores = [s for f in feats for s in score(cal, f)]

@@ -157,16 +157,13 @@ def _parts(p: Path, log: Any) -> tuple[list[tuple[int, str, dict[str, FloatArray
         cut += n_cut
         if len(cols[_GYRO[0]]) == 0:  # every one of them cut by the end of the file
             continue
-        instances = np.unique(cols["I"]).astype(int) if "I" in cols else None
-        if instances is not None and len(instances) > 1:
-            for inst in instances:
-                sel = cols["I"] == inst
-                parts.append((int(inst), name, {c: v[sel] for c, v in cols.items()}))
-        elif instances is not None:
-            parts.append((int(instances[0]), name, cols))
-        else:
+        if "I" not in cols:  # ArduPilot 3.x: the instance is in the message name
             parts.append((MESSAGES.index(name), name, cols))
-        del cols
+            continue
+        instances = np.unique(cols["I"]).astype(int)
+        for inst in instances:  # one instance: its columns as decoded, not copied
+            sel = slice(None) if len(instances) == 1 else cols["I"] == inst
+            parts.append((int(inst), name, {c: v[sel] for c, v in cols.items()}))
     if not parts:
         raise RunFileError(f"{p}: every IMU message ({', '.join(present)}: {cut}) is cut "
                            "short by the end of the file: nothing to read")
