@@ -19,13 +19,17 @@ from __future__ import annotations
 import json
 import os
 import random
+import signal
 import socket
+import subprocess
+import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import TypeVar
 
 import can
 import numpy as np
+import pytest
 import zenoh
 
 from gyrotherm.analysis._effects import BASE_COLUMNS, ExtendedModel
@@ -134,6 +138,33 @@ def dead_port() -> Iterator[int]:
         holder.bind(("127.0.0.1", 0))
         port: int = holder.getsockname()[1]
         yield port
+
+
+@contextmanager
+def cli_process(*args: str) -> Iterator[subprocess.Popen[str]]:
+    """``python -m gyrotherm ARGS`` with text pipes and faulthandler on; killed on the
+    way out if it still runs."""
+    proc = subprocess.Popen([sys.executable, "-m", "gyrotherm", *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONFAULTHANDLER": "1"})
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def stdout_after_sigterm(proc: subprocess.Popen[str], timeout_s: float) -> str:
+    """SIGTERM, then the process's stdout once it exits; if it does not within
+    ``timeout_s``, SIGABRT and a test failure that shows every thread's stack."""
+    proc.send_signal(signal.SIGTERM)
+    try:
+        stdout, _ = proc.communicate(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        proc.send_signal(signal.SIGABRT)
+        pytest.fail(f"no exit after SIGTERM:\n{proc.communicate(timeout=timeout_s)[1]}")
+    return stdout
 
 
 def enable_adminspace(config: zenoh.Config) -> zenoh.Config:

@@ -4,7 +4,6 @@ nothing imports mcap or foxglove unless ``record`` is asked for."""
 from __future__ import annotations
 
 import json
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -12,7 +11,7 @@ from pathlib import Path
 from mcap.reader import make_reader
 
 from gyrotherm.client._record import record_main
-from streamkit import dead_port
+from streamkit import cli_process, dead_port, stdout_after_sigterm
 
 TIMEOUT_S = 60.0
 
@@ -38,22 +37,13 @@ def test_sigterm_finishes_the_file(tmp_path: Path) -> None:
     """No daemon: record waits; SIGTERM ends it with a complete (readable) MCAP, exit 1
     (nothing recorded) and the JSON summary."""
     out = tmp_path / "x.mcap"
-    with dead_port() as port:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "gyrotherm", "record", "--vehicle", "v", "--sensor", "s",
-             "--connect", f"tcp/127.0.0.1:{port}", "--mcap", str(out), "--json",
-             "--calibration-timeout-s", "0.2"],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
-        try:
-            assert proc.stderr is not None
-            line = proc.stderr.readline()  # printed once subscribed
-            assert "gyrotherm/v/s/*" in line and str(out) in line
-            proc.send_signal(signal.SIGTERM)
-            stdout, _ = proc.communicate(timeout=TIMEOUT_S)
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
+    with dead_port() as port, cli_process(
+            "record", "--vehicle", "v", "--sensor", "s", "--connect", f"tcp/127.0.0.1:{port}",
+            "--mcap", str(out), "--json", "--calibration-timeout-s", "0.2") as proc:
+        assert proc.stderr is not None
+        line = proc.stderr.readline()  # printed once subscribed
+        assert "gyrotherm/v/s/*" in line and str(out) in line
+        stdout = stdout_after_sigterm(proc, TIMEOUT_S)
     assert proc.returncode == 1
     summary = json.loads(stdout)
     assert summary["messages"] == {} and summary["angular_velocity_variance_dps2"] == [0, 0, 0]
@@ -65,20 +55,3 @@ def test_sigterm_finishes_the_file(tmp_path: Path) -> None:
     assert {x.name for x in s.schemas.values()} == {
         "sensor_msgs/msg/Imu", "sensor_msgs/msg/Temperature", "gyrotherm.State",
         "gyrotherm.Health"}
-
-
-def test_the_signal_handler_cannot_deadlock_on_the_stop_event() -> None:
-    """The handler runs in the main thread, maybe while ``stop.wait()`` holds the event's
-    lock there (``stop.set()`` in the handler then never returns): it must return without
-    that lock, and ``stop`` be set once the lock is free. In a process of its own, so that
-    a deadlock fails by timeout instead of hanging the suite."""
-    code = ("import signal, threading\n"
-            "from gyrotherm.client._record import stop_on_signal\n"
-            "stop = threading.Event()\n"
-            "with stop._cond:  # what Event.wait holds between its lock acquisitions\n"
-            "    stop_on_signal(stop)(signal.SIGTERM, None)\n"
-            "    print(stop.is_set())\n"
-            "print(stop.wait(20))\n")  # fmt: skip
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True, timeout=TIMEOUT_S)  # fmt: skip
-    assert out.stdout.split() == ["False", "True"]

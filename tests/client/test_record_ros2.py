@@ -7,10 +7,7 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import queue
-import signal
-import subprocess
 import sys
 import threading
 import time
@@ -30,7 +27,7 @@ from gyrotherm.client import Subscriber
 from gyrotherm.client._record import record_main
 from gyrotherm.codecs import FrameEncoder, Run
 from gyrotherm.codecs._wire import RateMessage, StateMessage
-from streamkit import dead_port, open_ephemeral, run_frames
+from streamkit import cli_process, dead_port, open_ephemeral, run_frames, stdout_after_sigterm
 
 TIMEOUT_S = 20.0
 DEG = math.pi / 180
@@ -199,32 +196,19 @@ def _check_attachments(atts: list[bytes | None], gid: bytes, t_min: int | None,
 def test_sigterm_undeclares_the_tokens() -> None:
     """No daemon: ``--ros2`` alone declares its node and publishers (domain 7, namespace
     /robot1), publishes nothing; SIGTERM removes the tokens, exit 1, JSON summary."""
-    with dead_port() as port, listener(7) as lis:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "gyrotherm", "record", "--vehicle", "v", "--sensor", "s",
-             "--connect", f"tcp/127.0.0.1:{port}", "--connect", lis.endpoint, "--ros2",
-             "--ros-domain-id", "7", "--ros-namespace", "/robot1", "--ros-node-name", "br",
-             "--json", "--calibration-timeout-s", "0.2"],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-            env={**os.environ, "PYTHONFAULTHANDLER": "1"})  # fmt: skip
-        try:
-            assert proc.stderr is not None
-            line = proc.stderr.readline()  # printed once subscribed
-            assert "ROS 2 node /robot1/br domain 7 (rmw_zenoh)" in line
-            declared = lis.token_events(zenoh.SampleKind.PUT, 4)
-            assert lis.alive_tokens() == sorted(declared)
-            proc.send_signal(signal.SIGTERM)
-            try:
-                stdout, _ = proc.communicate(timeout=TIMEOUT_S * 3)
-            except subprocess.TimeoutExpired:  # where it hangs: every thread's stack
-                proc.send_signal(signal.SIGABRT)
-                pytest.fail(f"no exit after SIGTERM:\n{proc.communicate(timeout=TIMEOUT_S)[1]}")
-            assert sorted(lis.token_events(zenoh.SampleKind.DELETE, 4)) == sorted(declared)
-            assert lis.alive_tokens() == []
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
+    with dead_port() as port, listener(7) as lis, cli_process(
+            "record", "--vehicle", "v", "--sensor", "s", "--connect", f"tcp/127.0.0.1:{port}",
+            "--connect", lis.endpoint, "--ros2", "--ros-domain-id", "7", "--ros-namespace",
+            "/robot1", "--ros-node-name", "br", "--json",
+            "--calibration-timeout-s", "0.2") as proc:  # fmt: skip
+        assert proc.stderr is not None
+        line = proc.stderr.readline()  # printed once subscribed
+        assert "ROS 2 node /robot1/br domain 7 (rmw_zenoh)" in line
+        declared = lis.token_events(zenoh.SampleKind.PUT, 4)
+        assert lis.alive_tokens() == sorted(declared)
+        stdout = stdout_after_sigterm(proc, TIMEOUT_S * 3)
+        assert sorted(lis.token_events(zenoh.SampleKind.DELETE, 4)) == sorted(declared)
+        assert lis.alive_tokens() == []
     assert proc.returncode == 1
     summary = json.loads(stdout)
     assert summary["messages"] == {}

@@ -30,13 +30,12 @@ import math
 import signal
 import sys
 import threading
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 from pathlib import Path
-from types import FrameType
 from typing import TYPE_CHECKING
 
 from gyrotherm._errors import ConfigError, GyrothermError
+from gyrotherm._signals import stop_on_signals
 from gyrotherm.bus import FrameSink, open_bus
 from gyrotherm.codecs import DEFAULT_DBC_PATH, FrameEncoder, read_run
 
@@ -142,27 +141,6 @@ def _frames(args: argparse.Namespace) -> FrameStream:
     return frames_from_run(run, encoder=encoder, temperature_period_s=args.temperature_period_s)
 
 
-@contextmanager
-def _stop_on_signals(stop: threading.Event) -> Iterator[list[int]]:
-    """SIGTERM/SIGINT set ``stop`` (from a helper thread: Event.set may not run inside a
-    handler that interrupted the same thread in Event.wait); yields the signals seen."""
-    seen: list[int] = []
-    if threading.current_thread() is not threading.main_thread():
-        yield seen
-        return
-
-    def handler(signum: int, frame: FrameType | None) -> None:
-        seen.append(signum)
-        threading.Thread(target=stop.set, name="stop-on-signal", daemon=True).start()
-
-    previous = {s: signal.signal(s, handler) for s in (signal.SIGTERM, signal.SIGINT)}
-    try:
-        yield seen
-    finally:
-        for s, h in previous.items():
-            signal.signal(s, h)
-
-
 def _wait_for_clients(server: SocketcandServer, n: int, timeout_s: float,
                       stop: threading.Event) -> bool:
     waited = 0.0
@@ -204,7 +182,7 @@ def cmd_stream(args: argparse.Namespace) -> int:
     sinks: list[FrameSink] = []
     server: SocketcandServer | None = None
     extra: dict[str, object] = {}
-    with _stop_on_signals(stop) as signals:
+    with stop_on_signals(stop) as signals:
         try:
             if args.write_candump is not None:
                 Path(args.write_candump).parent.mkdir(parents=True, exist_ok=True)

@@ -22,16 +22,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import signal
 import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
 from gyrotherm._errors import CalibrationError, ConfigError, DecodeError
+from gyrotherm._signals import stop_on_signals
 from gyrotherm._zenoh import DEFAULT_CONNECT, open_session
 from gyrotherm.client._channels import Fanout, McapSink, Sink
 from gyrotherm.client._ros import residual_variance_dps2
@@ -117,28 +116,15 @@ def record_main(argv: Sequence[str] | None = None, *,
         print(f"gyrotherm record: error: {error}", file=sys.stderr)
         return 2
     stop = threading.Event() if stop is None else stop
-    if threading.current_thread() is threading.main_thread():
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, stop_on_signal(stop))
-    try:
-        session = (open_session(config_file=args.zenoh_config) if args.zenoh_config
-                   else open_session(connect=args.connect or DEFAULT_CONNECT))  # fmt: skip
-    except ConfigError as exc:
-        print(f"gyrotherm record: error: {exc}", file=sys.stderr)
-        return 2
-    with session:
-        return _record(args, session, stop, on_ready)
-
-
-def stop_on_signal(stop: threading.Event) -> Callable[[int, FrameType | None], None]:
-    """A signal handler that sets ``stop`` from a short-lived thread: the handler runs in
-    the main thread between two bytecodes, possibly while that thread holds the lock of
-    ``stop`` inside ``stop.wait()``, and ``stop.set()`` there would wait for it forever."""
-
-    def handler(signum: int, frame: FrameType | None) -> None:
-        threading.Thread(target=stop.set, name="record-stop", daemon=True).start()
-
-    return handler
+    with stop_on_signals(stop):
+        try:
+            session = (open_session(config_file=args.zenoh_config) if args.zenoh_config
+                       else open_session(connect=args.connect or DEFAULT_CONNECT))  # fmt: skip
+        except ConfigError as exc:
+            print(f"gyrotherm record: error: {exc}", file=sys.stderr)
+            return 2
+        with session:
+            return _record(args, session, stop, on_ready)
 
 
 def _ros_options(args: argparse.Namespace) -> str | None:
