@@ -8,14 +8,20 @@ frames) under three calibrations:
 * ``paper``: version 1, Tang et al.'s eq. 11 on every axis (the baseline);
 * ``richest``: version 2, every axis with all six effects (thermal lag,
   hysteresis, warm-up, cubic, gradient², drift): the most a calibration can ask;
-* ``none``: no calibration (the floor: decode, estimate, encode, publish).
+* ``none``: no calibration (the floor: decode, estimate, encode, publish);
+* ``richest_zero_pending``: ``richest`` with a boot-time zero that never accepts a
+  window (``max_std_dps`` 1e-6, no deadline within the trial): every rate frame
+  feeds the zero, its worst case (it lasts at most ``deadline_s`` on a vehicle);
+* ``richest_zero_done``: ``richest`` with a zero accepted after 1 s: the state
+  the daemon is in for the rest of a power-on.
 
 Trials are interleaved round-robin (paper, richest, none, paper, …) so load changes
 hit all alike; each trial times ``Pipeline.process`` over all frames with
 ``time.process_time`` (CPU of this process). Reported: median µs per frame, per
 rate frame and per temperature frame (the compensation runs on temperature frames
 only; the extended model adds its cost there), and the ratio richest / paper (the
-issue's bound: ≤ 1.2 per frame). One JSON object on stdout, a summary on stderr.
+issue's bound: ≤ 1.2 per frame), and each zero variant / paper. One JSON object on
+stdout, a summary on stderr.
 """
 
 from __future__ import annotations
@@ -33,7 +39,7 @@ import numpy as np
 from gyrotherm.analysis._effects import BASE_COLUMNS, ExtendedModel
 from gyrotherm.analysis._export import calibration_from_models
 from gyrotherm.codecs import FrameDecoder, FrameEncoder, Run
-from gyrotherm.compensation import Calibration, Scaling, ValidRange
+from gyrotherm.compensation import Calibration, Scaling, ValidRange, ZeroConfig
 from gyrotherm.daemon import Pipeline
 from gyrotherm.estimators import EstimatorConfig
 from gyrotherm.sim import frames_from_run
@@ -67,6 +73,14 @@ def calibrations() -> dict[str, Calibration | None]:
     return {"paper": paper, "richest": richest, "none": None}
 
 
+#: Boot-time zero variants measured with the richest calibration.
+ZEROS = {
+    "richest_zero_pending": ZeroConfig(settle_s=0.0, window_s=1.0, max_std_dps=1e-6,
+                                       deadline_s=86400.0),
+    "richest_zero_done": ZeroConfig(settle_s=0.0, window_s=1.0, max_std_dps=100.0),
+}
+
+
 def frames(n_rate: int, seed: int, temperature_period_s: float) -> list[can.Message]:
     rng = np.random.default_rng(seed)
     t = np.arange(n_rate) / 1000.0
@@ -77,8 +91,9 @@ def frames(n_rate: int, seed: int, temperature_period_s: float) -> list[can.Mess
     return list(frames_from_run(run, encoder=FrameEncoder(), t0_s=1_700_000_000.0))
 
 
-def trial(msgs: list[can.Message], cal: Calibration | None) -> float:
-    pipe = Pipeline(FrameDecoder(), _Discard(), calibration=cal)
+def trial(msgs: list[can.Message], cal: Calibration | None,
+          zero: ZeroConfig | None = None) -> float:
+    pipe = Pipeline(FrameDecoder(), _Discard(), calibration=cal, zero=zero)
     process = pipe.process
     t0 = time.process_time()
     for m in msgs:
@@ -86,6 +101,10 @@ def trial(msgs: list[can.Message], cal: Calibration | None) -> float:
     cpu = time.process_time() - t0
     c = pipe.counters()
     assert c.frames_published == len(msgs), c  # everything went through, nothing dropped
+    if zero is not None:  # the variant is in the state it claims to measure
+        z = pipe.compensation.zero
+        assert z is not None and z.status.name == ("PENDING" if zero.max_std_dps < 1e-3
+                                                   else "DONE"), z.status
     return cpu
 
 
@@ -93,10 +112,12 @@ def measure(msgs: list[can.Message], cals: dict[str, Calibration | None],
             rounds: int) -> dict[str, Any]:
     temp_id = FrameEncoder().layout.temperature.frame_id
     n_temp = sum(m.arbitration_id == temp_id for m in msgs)
-    cpu: dict[str, list[float]] = {k: [] for k in cals}
+    cpu: dict[str, list[float]] = {k: [] for k in (*cals, *ZEROS)}
     for _ in range(rounds):
         for name, cal in cals.items():
             cpu[name].append(trial(msgs, cal))
+        for name, zero in ZEROS.items():
+            cpu[name].append(trial(msgs, cals["richest"], zero))
     med = {k: statistics.median(v) for k, v in cpu.items()}
     return {
         "frames": len(msgs), "temperature_frames": n_temp, "rounds": rounds, "cpu_s": cpu,
@@ -105,6 +126,7 @@ def measure(msgs: list[can.Message], cals: dict[str, Calibration | None],
         "compensation_us_per_temperature_frame": {
             k: 1e6 * (med[k] - med["none"]) / n_temp for k in ("paper", "richest")},
         "ratio_richest_to_paper_per_frame": med["richest"] / med["paper"],
+        **{f"ratio_{k}_to_paper_per_frame": med[k] / med["paper"] for k in ZEROS},
         "ratio_richest_to_paper_per_round": [r / p for r, p in zip(cpu["richest"], cpu["paper"],
                                                                    strict=True)],
     }
@@ -127,8 +149,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name}: µs/frame (median of {a.rounds}): paper {us['paper']:.2f}, richest "
               f"{us['richest']:.2f}, none {us['none']:.2f}; richest/paper "
               f"{r['ratio_richest_to_paper_per_frame']:.3f}; added per temperature frame: "
-              f"paper {comp['paper']:.1f} µs, richest {comp['richest']:.1f} µs",
-              file=sys.stderr)
+              f"paper {comp['paper']:.1f} µs, richest {comp['richest']:.1f} µs; with a zero "
+              + ", ".join(f"{k} {us[k]:.2f} ({r[f'ratio_{k}_to_paper_per_frame']:.3f})"
+                          for k in ZEROS), file=sys.stderr)
     print(json.dumps(out, indent=2))
     return 0
 

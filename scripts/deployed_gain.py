@@ -59,7 +59,7 @@ from gyrotherm.analysis import SYNTH_EFFECTS, SynthConfig, diagnose, synth_runs
 from gyrotherm.analysis._diagnose import export_calibration
 from gyrotherm.codecs import FrameDecoder, FrameEncoder, Run, StatusFlags
 from gyrotherm.codecs._wire_decode import decode_rate
-from gyrotherm.compensation import Calibration, Scaling, features, fit
+from gyrotherm.compensation import Calibration, Scaling, ZeroConfig, ZeroStatus, features, fit
 from gyrotherm.daemon import Pipeline
 from gyrotherm.sim import frames_from_run
 
@@ -96,45 +96,44 @@ class _Sink:
 
 
 ZERO_WINDOWS_S = (10.0, 60.0, 300.0)
-"""Boot-time zero windows tried (s at rest after the estimator's warm-up)."""
+"""Boot-time zero windows tried (s at rest; the daemon's ``[zero] window_s``)."""
+ZERO_SETTLE_S = 30.0
+"""``[zero] settle_s``: past the estimator's warm-up (20 readings of a sensor that
+refreshes every 1.28 s ≈ 26 s); the other ``[zero]`` keys keep their defaults."""
 
 
 @dataclass(frozen=True)
 class Streamed:
     """Bias error (removed − true) of one calibration on one run, after warm-up; and,
-    per boot-time zero window (s), the RMS error with that zero (see :func:`zeroed`)."""
+    per boot-time zero window (s), the RMS error with the daemon's zero (see
+    :func:`zeroed_error`) and how the zero ended."""
 
     rms_dps: float
     std_dps: float
     mean_dps: float
     rows: int
     zeroed_rms_dps: dict[float, float]
+    zero_status: dict[float, str]
 
 
-def zeroed(run: Run, removed: np.ndarray, ready: np.ndarray, window_s: float,
-           axis: str = "x") -> float:
-    """RMS error if the vehicle zeroed the gyro at boot, as ArduPilot's boot-time gyro
-    calibration does with the vehicle at rest: offset = mean(rate − removed bias) over
-    the first ``window_s`` seconds past the estimator warm-up, added to every later
-    removed bias. The zero also takes out the run's switch-on offset, so the truth is
-    then the whole slow bias the gyro outputs, true bias + switch-on offset (the
-    generator's metadata ``switch_on_offset_dps``); scored after the window."""
-    t = run.time_s
-    start = t[np.flatnonzero(ready)[0]]
-    window = ready & (t >= start) & (t < start + window_s)
-    after = ready & (t >= start + window_s)
-    rate = run.rates_dps[axis]
-    offset = float(np.mean(rate[window] - removed[window]))
+def zeroed_error(run: Run, removed: np.ndarray, from_s: float, axis: str = "x") -> float:
+    """RMS error of the bias removed by a daemon running the boot-time zero: the zero
+    also takes out the run's switch-on offset, so the truth is the whole slow bias
+    the gyro outputs, true bias + switch-on offset (the generator's metadata
+    ``switch_on_offset_dps``), scored from ``from_s`` after the run's first row (the
+    end of the zero's first window: the same rows for every calibration, also when
+    its zero was refused or is still pending there)."""
+    t = run.time_s - run.time_s[0]
+    after = t >= from_s
     truth = run.true_bias_dps[axis] + float(run.metadata["switch_on_offset_dps"])
-    err = removed[after] + offset - truth[after]
+    err = removed[after] - truth[after]
     return float(np.sqrt(np.mean(err**2)))
 
 
-def stream_error(run: Run, calibration: Calibration, axis: str = "x") -> Streamed:
-    """Stream ``run`` through the daemon's Pipeline with ``calibration``; the bias it
-    removed minus the run's true bias, over rate messages past the estimator warm-up."""
+def _stream(run: Run, calibration: Calibration, zero: ZeroConfig | None,
+            axis: str) -> tuple[np.ndarray, np.ndarray, Pipeline]:
     sink = _Sink()
-    pipe = Pipeline(FrameDecoder(), sink, calibration=calibration)
+    pipe = Pipeline(FrameDecoder(), sink, calibration=calibration, zero=zero)
     for msg in frames_from_run(run, encoder=FrameEncoder()):
         pipe.process(msg, 1.0e9)
     if pipe.counters().drops:
@@ -145,11 +144,28 @@ def stream_error(run: Run, calibration: Calibration, axis: str = "x") -> Streame
     j = "xyz".index(axis)
     removed = np.array([m.bias_dps[j] for m in msgs])
     ready = np.array([not (m.flags & StatusFlags.ESTIMATOR_WARMUP) for m in msgs])
+    return removed, ready, pipe
+
+
+def stream_error(run: Run, calibration: Calibration, axis: str = "x") -> Streamed:
+    """Stream ``run`` through the daemon's Pipeline with ``calibration``: without a
+    zero, the bias it removed minus the run's true bias over rate messages past the
+    estimator warm-up; and once per window of :data:`ZERO_WINDOWS_S` with the
+    daemon's boot-time zero (``Pipeline(zero=...)``, :func:`zeroed_error`)."""
+    removed, ready, _ = _stream(run, calibration, None, axis)
     err = (removed - run.true_bias_dps[axis])[ready]
+    zeroed, status = {}, {}
+    for w in ZERO_WINDOWS_S:
+        removed_z, _, pipe = _stream(run, calibration,
+                                     ZeroConfig(window_s=w, settle_s=ZERO_SETTLE_S), axis)
+        zeroed[w] = zeroed_error(run, removed_z, ZERO_SETTLE_S + w, axis)
+        zero = pipe.compensation.zero
+        assert zero is not None
+        status[w] = zero.status.name.lower() + (
+            f" at {zero.done_s - run.time_s[0]:.0f} s" if zero.status == ZeroStatus.DONE else "")
     return Streamed(rms_dps=float(np.sqrt(np.mean(err**2))), std_dps=float(np.std(err)),
                     mean_dps=float(np.mean(err)), rows=int(ready.sum()),
-                    zeroed_rms_dps={w: zeroed(run, removed, ready, w, axis)
-                                    for w in ZERO_WINDOWS_S})
+                    zeroed_rms_dps=zeroed, zero_status=status)
 
 
 def heating_part(run: Run) -> Run:
@@ -199,6 +215,7 @@ def one_effect(effect: str, s: Settings, seed: int = SEED) -> dict[str, Any]:
         "mean_dps": {k: v.mean_dps for k, v in errors.items()},
         "deployed_gain_std": errors["paper"].std_dps / errors["extended"].std_dps,
         "zeroed": {str(w): {"rms_dps": {k: v.zeroed_rms_dps[w] for k, v in errors.items()},
+                            "status": {k: v.zero_status[w] for k, v in errors.items()},
                             "deployed_gain": errors["paper"].zeroed_rms_dps[w]
                             / errors["extended"].zeroed_rms_dps[w]}
                    for w in ZERO_WINDOWS_S},
@@ -238,7 +255,7 @@ def table(rows: Sequence[dict[str, Any]]) -> list[str]:
 
 
 def zero_table(rows: Sequence[dict[str, Any]]) -> list[str]:
-    """With a boot-time zero (:func:`zeroed`): deployed gain (and / offline) per window."""
+    """With the daemon's boot-time zero: deployed gain (and / offline) per window."""
     head = " | ".join(f"zero {w:g} s: gain (/ offline), RMS paper / extended °/s"
                       for w in ZERO_WINDOWS_S)
     out = [f"| injected | offline gain | no zero: gain (/ offline) | {head} |",
@@ -248,8 +265,11 @@ def zero_table(rows: Sequence[dict[str, Any]]) -> list[str]:
         for w in ZERO_WINDOWS_S:
             z = r["zeroed"][str(w)]
             share = 100 * z["deployed_gain"] / r["offline_gain"]
+            odd = [f"{k} zero {v}" for k, v in z["status"].items()
+                   if k != "px4_t3" and not v.startswith("done")]
             cells.append(f"{z['deployed_gain']:.2f} ({share:.0f} %), "
-                         f"{z['rms_dps']['paper']:.4f} / {z['rms_dps']['extended']:.4f}")
+                         f"{z['rms_dps']['paper']:.4f} / {z['rms_dps']['extended']:.4f}"
+                         + (f" ({'; '.join(odd)})" if odd else ""))
         out.append(f"| {r['effect']} | {r['offline_gain']:.2f} | {r['deployed_gain']:.2f} "
                    f"({100 * r['deployed_over_offline']:.0f} %) | " + " | ".join(cells) + " |")
     return out

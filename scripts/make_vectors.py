@@ -34,6 +34,7 @@ from gyrotherm.codecs._wire import (
     RateMessage,
     StateMessage,
     StatusFlags,
+    ZeroState,
     encode_calibration_info,
     encode_health,
     encode_rate,
@@ -50,6 +51,7 @@ UNITS: dict[str, str] = {
     "rate_dps": "deg/s", "raw_rate_dps": "deg/s", "bias_dps": "deg/s",
     "temperature_c": "degC", "temperature_std_c": "degC", "delta_t_c": "degC",
     "delta_t_std_c": "degC", "flags": "-", "effects": "per axis: [degC, -, -, s, deg/s]",
+    "zero": "[status (0 off, 1 pending, 2 done, 3 failed), deg/s x3]",
     "uptime_s": "s", "frames_received": "frames", "frames_published": "frames",
     "drops": "frames", "calibration_id": "-", "counter_jumps": "events",
     "calibration": "as in the calibration file", "health": "health fields",
@@ -67,6 +69,13 @@ STATE_EFFECTS = StateMessage(3, 10.0, 11.0, 25.5, 0.125, -1.5, 0.0625, (1.0, 2.0
                              {"x": AxisEffects(31.25, -0.5, -1, 600.0, 0.0125),
                               "y": AxisEffects(25.5, 0.0, 0, 600.0, 0.0),
                               "z": AxisEffects(27.0, 1.0, 1, 600.0, -0.25)})  # fmt: skip
+STATE_ZERO = StateMessage(90, 60.0, 1700000060.0, 26.25, 0.0625, 0.125, 0.03125,
+                          (0.5, -0.25, 0.125), StatusFlags.NONE, {},
+                          ZeroState(2, (0.0125, -0.03125, 0.0078125)))  # fmt: skip
+STATE_ZERO_PENDING = StateMessage(4, 5.0, 1700000005.0, 26.25, 0.0625, 0.0, 0.03125,
+                                  (0.5, -0.25, 0.125), StatusFlags.ZERO_PENDING,
+                                  {"x": AxisEffects(26.25, 0.0, 0, 5.0, 0.0)},
+                                  ZeroState(1, (0.0, 0.0, 0.0)))  # fmt: skip
 NAN = float("nan")
 STATE_NAN = StateMessage(0, 0.5, 1700000000.5, NAN, NAN, NAN, NAN, (0.0, 0.0, 0.0),
                          StatusFlags.TEMPERATURE_STALE | StatusFlags.ESTIMATOR_WARMUP)
@@ -92,6 +101,8 @@ def _plain(v: Any) -> Any:
         return int(v)
     if isinstance(v, AxisEffects):
         return dict(zip(_EFFECT_FIELDS, v, strict=True))
+    if isinstance(v, ZeroState):
+        return {"status": v.status, "offset_dps": list(v.offset_dps)}
     if isinstance(v, HealthMessage):
         return _fields("health", v)
     if isinstance(v, tuple | list):
@@ -105,7 +116,7 @@ _ORDER = {
     "rate": ("seq", "sensor_time_s", "receive_time_s", "rate_dps", "raw_rate_dps", "bias_dps",
              "flags"),
     "state": ("seq", "sensor_time_s", "receive_time_s", "temperature_c", "temperature_std_c",
-              "delta_t_c", "delta_t_std_c", "bias_dps", "flags", "effects"),
+              "delta_t_c", "delta_t_std_c", "bias_dps", "flags", "effects", "zero"),
     "health": ("seq", "sensor_time_s", "receive_time_s", "uptime_s", "frames_received",
                "frames_published", "drops", "flags", "calibration_id", "counter_jumps"),
     "calibration": ("calibration_id", "calibration", "health"),
@@ -119,8 +130,10 @@ def _fields(kind: str, msg: Any, *, drop: tuple[str, ...] = ()) -> list[dict[str
     for name in _ORDER[kind]:
         if name in drop:
             continue
-        if kind == "state" and name == "effects" and not msg.effects:
-            continue  # the encoder appends it only when not empty
+        if kind == "state" and name == "effects" and not msg.effects and msg.zero is None:
+            continue  # the encoder appends it only when not empty, or before a zero
+        if kind == "state" and name == "zero" and msg.zero is None:
+            continue
         out.append({"name": name, "unit": UNITS[name], "value": _plain(getattr(msg, name))})
     return out
 
@@ -150,6 +163,13 @@ def build() -> dict[str, Any]:
                 "7ff8000000000000; JSON writes it as the string \"NaN\""),
         _vector("state-effects", "state", "state", encode_state(STATE_EFFECTS),
                 _fields("state", STATE_EFFECTS), "with the appended effects element (14)"),
+        _vector("state-zero-done", "state", "state", encode_state(STATE_ZERO),
+                _fields("state", STATE_ZERO),
+                "boot-time zero done (15 elements): effects written empty ({}) before it; "
+                "the offsets are part of bias_dps"),
+        _vector("state-zero-pending", "state", "state", encode_state(STATE_ZERO_PENDING),
+                _fields("state", STATE_ZERO_PENDING),
+                "boot-time zero pending (flag ZERO_PENDING), with effects"),
         _vector("health", "health", "health", encode_health(HEALTH), _fields("health", HEALTH),
                 "with drops, calibration id and counter_jumps"),
         _vector("health-before-first-frame", "health", "health", encode_health(HEALTH_EMPTY),

@@ -23,8 +23,10 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import TypeVar
 
 import can
@@ -34,8 +36,11 @@ import zenoh
 
 from gyrotherm.analysis._effects import BASE_COLUMNS, ExtendedModel
 from gyrotherm.analysis._export import calibration_from_models
+from gyrotherm.bus import open_bus
+from gyrotherm.client import Subscriber
 from gyrotherm.codecs import FrameEncoder, RateSample, Run, SignalMap, TemperatureSample
 from gyrotherm.compensation import Calibration, RunFeatures, Scaling, ValidRange, features
+from gyrotherm.daemon import Daemon, RunSummary, parse_config
 
 
 def run_frames(run: Run, encoder: FrameEncoder, *, period_s: float = 0.0) -> Iterator[can.Message]:
@@ -287,3 +292,33 @@ def make_v2(stream_calibration: Calibration, *, scale: float = 1.0,
                                    t_on_max_s=t_on_max_s,
                                    valid_range=ValidRange(-60.0, 90.0, -500.0, 500.0),
                                    provenance={"method": "by hand"})
+
+
+_DAEMON_TIMEOUT_S = 20.0
+
+
+def run_daemon_in_process(cfg: dict[str, object], tmp_path: Path, frames: list,
+                          channel: str, port: int, n_rows: int) -> tuple[list, list, RunSummary]:
+    """A Daemon of ``cfg`` in a thread (virtual CAN ``channel``, Zenoh on ``port``):
+    ``frames`` sent, the rate and state messages received until ``n_rows`` of each,
+    then stopped; returns them with the run summary."""
+    daemon = Daemon(parse_config(cfg, base_dir=tmp_path))
+    result: dict[str, RunSummary] = {}
+    thread = threading.Thread(target=lambda: result.update(s=daemon.run()), daemon=True)
+    thread.start()
+    assert daemon.ready.wait(_DAEMON_TIMEOUT_S)
+    try:
+        with Subscriber("car", "imu0", connect=[f"tcp/127.0.0.1:{port}"]) as sub, \
+                open_bus(interface="virtual", channel=channel) as bus:
+            assert sub.wait_for(lambda s: s.health.received >= 1, timeout_s=_DAEMON_TIMEOUT_S)
+            for msg in frames:
+                bus.send(msg)
+            assert sub.wait_for(lambda s: s.rate.received >= n_rows
+                                and s.state.received >= n_rows, timeout_s=_DAEMON_TIMEOUT_S)
+            rates = list(sub.rates(timeout_s=0.5))
+            states = list(sub.states(timeout_s=0.5))
+    finally:
+        daemon.stop()
+        thread.join(_DAEMON_TIMEOUT_S)
+    assert not thread.is_alive() and "s" in result
+    return rates, states, result["s"]

@@ -49,28 +49,22 @@ def test_nothing_injected_extended_no_worse_than_paper(script: ModuleType) -> No
     assert row["rms_dps"]["extended"] <= script.NONE_TOLERANCE * row["rms_dps"]["paper"]
 
 
-def test_boot_zero_hand_computed(script: ModuleType) -> None:
-    """``zeroed`` on a hand-made run: 10 Hz, a true bias of 0.1 °/s + 0.001 °/s per s,
-    switch-on offset 0.03 °/s, a calibration that removes the true bias + 0.02 °/s
-    (its intercept off), rate = truth + offset + ±0.01 °/s alternating (zero mean over
-    any even number of rows). A 10-s zero (100 rows) measures 0.03 − 0.02 = +0.01 °/s and
-    leaves no error after the window; with the first 5 rows not ready it starts later."""
+def test_zeroed_error_hand_computed(script: ModuleType) -> None:
+    """``zeroed_error`` on a hand-made run: 10 Hz, a true bias of 0.1 °/s + 0.001 °/s
+    per s, switch-on offset 0.03 °/s. A daemon whose zero caught the offset exactly
+    removes truth + 0.03 from 40 s on (before: truth + 0.02, a calibration whose
+    intercept is off): scored from 40 s the error is 0; from 30 s, 100 of the 300 rows
+    are off by −0.01 °/s: RMS = 0.01·√(1/3)."""
     import numpy as np
 
     from gyrotherm.codecs import Run
 
     t = np.arange(0.0, 60.0, 0.1)
     truth = 0.1 + 0.001 * t
-    wiggle = np.where(np.arange(len(t)) % 2 == 0, 0.01, -0.01)
-    run = Run(name="hand", time_s=t, temperature_c=np.full(len(t), 20.0),
-              rates_dps={"x": truth + 0.03 + wiggle}, true_bias_dps={"x": truth},
+    run = Run(name="hand", time_s=t + 1000.0, temperature_c=np.full(len(t), 20.0),
+              rates_dps={"x": truth + 0.03}, true_bias_dps={"x": truth},
               metadata={"switch_on_offset_dps": "0.03"})
-    removed = truth + 0.02
-    ready = np.ones(len(t), dtype=bool)
-    assert script.zeroed(run, removed, ready, 10.0) == pytest.approx(0.0, abs=1e-12)
-    # unzeroed, the error against the whole slow bias would be 0.02 − 0.03 = −0.01 °/s
-    ready[:5] = False  # 0.5 s of estimator warm-up: the window is rows 5…104
-    assert script.zeroed(run, removed, ready, 10.0) == pytest.approx(0.0, abs=1e-12)
-    # a 0.25-s window holds rows 5, 6, 7 (wiggle −0.01, +0.01, −0.01): the zero is off
-    # by −0.01/3 °/s, and so is every row after it
-    assert script.zeroed(run, removed, ready, 0.25) == pytest.approx(0.01 / 3, rel=1e-9)
+    removed = truth + np.where(t >= 40.0 - 1e-9, 0.03, 0.02)
+    assert script.zeroed_error(run, removed, 40.0) == pytest.approx(0.0, abs=1e-12)
+    assert script.zeroed_error(run, removed, 30.0) == pytest.approx(0.01 / np.sqrt(3),
+                                                                    rel=1e-6)

@@ -26,6 +26,7 @@ from gyrotherm.codecs._wire import (
     RateMessage,
     StateMessage,
     StatusFlags,
+    ZeroState,
     encode_calibration_info,
     encode_health,
     encode_rate,
@@ -89,9 +90,12 @@ def message_from_json(v: dict[str, Any]) -> Any:
         eff = {a: AxisEffects(e["structure_temperature_c"], e["hysteresis_h"],
                               e["hysteresis_direction"], e["t_on_s"], e["effects_bias_dps"])
                for a, e in f.get("effects", {}).items()}  # fmt: skip
+        z = f.get("zero")
+        zero = None if z is None else ZeroState(z["status"], tuple(z["offset_dps"]))
         return StateMessage(f["seq"], f["sensor_time_s"], f["receive_time_s"], f["temperature_c"],
                             f["temperature_std_c"], f["delta_t_c"], f["delta_t_std_c"],
-                            tuple(f["bias_dps"]), StatusFlags(f["flags"]), eff)  # fmt: skip
+                            tuple(f["bias_dps"]), StatusFlags(f["flags"]), eff,
+                            zero)  # fmt: skip
     if v["kind"] == "health":
         return _health(f)
     h = f["health"]
@@ -126,6 +130,8 @@ def _wire_order(fields: list[dict[str, Any]]) -> list[Any]:
             out.extend(val)
         elif f["name"] == "effects":
             out.append({a: list(e.values()) for a, e in val.items()})
+        elif f["name"] == "zero":
+            out.append([val["status"], *val["offset_dps"]])
         elif f["name"] == "health" and val is not None:
             out.append(_wire_order(val))
         else:
@@ -142,7 +148,8 @@ def test_a_plain_msgpack_unpack_gives_the_fields_in_order(v: dict[str, Any]) -> 
 def test_every_kind_and_both_state_forms_are_covered() -> None:
     names = {v["name"] for v in ALL}
     assert {v["kind"] for v in ALL} == {"rate", "state", "health", "calibration"}
-    assert {"state", "state-effects", "state-not-available"} <= names
+    assert {"state", "state-effects", "state-not-available", "state-zero-done",
+            "state-zero-pending"} <= names
     assert {f["name"] for f in next(v for v in ALL if v["name"] == "state-effects")["fields"]} \
         >= {"effects"}
 

@@ -6,44 +6,14 @@ offline compensator over their estimator output as one series from power-on."""
 from __future__ import annotations
 
 import json
-import threading
 import uuid
 from pathlib import Path
 
 import numpy as np
 
-from gyrotherm.bus import open_bus
-from gyrotherm.client import Subscriber
 from gyrotherm.codecs import FrameEncoder, Run
 from gyrotherm.compensation import Calibration
-from gyrotherm.daemon import Daemon, RunSummary, parse_config
-from streamkit import free_port, make_v2, offline_bias, run_frames
-
-TIMEOUT_S = 20.0
-
-
-def _run_daemon(cfg: dict[str, object], tmp_path: Path, frames: list, channel: str,
-                port: int, n_rows: int) -> tuple[list, list, RunSummary]:
-    daemon = Daemon(parse_config(cfg, base_dir=tmp_path))
-    result: dict[str, RunSummary] = {}
-    thread = threading.Thread(target=lambda: result.update(s=daemon.run()), daemon=True)
-    thread.start()
-    assert daemon.ready.wait(TIMEOUT_S)
-    try:
-        with Subscriber("car", "imu0", connect=[f"tcp/127.0.0.1:{port}"]) as sub, \
-                open_bus(interface="virtual", channel=channel) as bus:
-            assert sub.wait_for(lambda s: s.health.received >= 1, timeout_s=TIMEOUT_S)
-            for msg in frames:
-                bus.send(msg)
-            assert sub.wait_for(lambda s: s.rate.received >= n_rows
-                                and s.state.received >= n_rows, timeout_s=TIMEOUT_S)
-            rates = list(sub.rates(timeout_s=0.5))
-            states = list(sub.states(timeout_s=0.5))
-    finally:
-        daemon.stop()
-        thread.join(TIMEOUT_S)
-    assert not thread.is_alive() and "s" in result
-    return rates, states, result["s"]
+from streamkit import free_port, make_v2, offline_bias, run_daemon_in_process, run_frames
 
 
 def test_restart_restores_the_effects_state(
@@ -60,10 +30,11 @@ def test_restart_restores_the_effects_state(
            "can": {"interface": "virtual", "channel": channel, "recv_timeout_s": 0.05},
            "zenoh": {"listen": [f"tcp/127.0.0.1:{port}"]}}
     (tmp_path / "state").mkdir()
-    r1, s1, sum1 = _run_daemon(cfg, tmp_path, frames[:2 * cut], channel, port, cut)
+    r1, s1, sum1 = run_daemon_in_process(cfg, tmp_path, frames[:2 * cut], channel, port, cut)
     saved = json.loads((tmp_path / "state" / "car.imu0.effects-state.json").read_text())
     assert saved["time_s"] == run.time_s[cut - 1] and saved["power_on_s"] == run.time_s[0]
-    r2, s2, sum2 = _run_daemon(cfg, tmp_path, frames[2 * cut:], channel, port, len(run) - cut)
+    r2, s2, sum2 = run_daemon_in_process(cfg, tmp_path, frames[2 * cut:], channel, port,
+                                         len(run) - cut)
     assert sum1.drops == {} and sum2.drops == {}
     states = s1 + s2
     assert len(states) == len(run) and len(r1 + r2) == len(run)

@@ -43,6 +43,10 @@ pub mod flags {
     pub const NON_FINITE: u64 = 0x200;
     pub const BIAS_INVALID: u64 = 0x400;
     pub const T_ON_CLAMPED: u64 = 0x800;
+    /// A boot-time zero is configured and not measured yet: the switch-on offset is in the rate.
+    pub const ZERO_PENDING: u64 = 0x1000;
+    /// The boot-time zero found no rest window before its deadline.
+    pub const ZERO_FAILED: u64 = 0x2000;
 }
 
 /// A payload that does not follow the wire format; the text names the message,
@@ -103,6 +107,17 @@ pub struct StateMessage {
     pub flags: u64,
     /// Axis ("x", "y", "z") → effects; empty when the element is absent.
     pub effects: BTreeMap<String, AxisEffects>,
+    /// The boot-time zero (state element 14); None when the daemon runs none.
+    pub zero: Option<ZeroState>,
+}
+
+/// The boot-time zero in a state message (docs/model.md, "Boot-time zero").
+#[derive(Debug, Clone, PartialEq)]
+pub struct ZeroState {
+    /// 0 off, 1 pending, 2 done, 3 failed.
+    pub status: u8,
+    /// z per axis (x, y, z), °/s; part of `bias_dps`; zeros unless done.
+    pub offset_dps: [f64; 3],
 }
 
 /// Health message (kind 3).
@@ -265,6 +280,27 @@ impl F<'_> {
             }
             _ => Err(self.fail(v, &format!("is {}, expected map or nil", type_name(v)))),
         }
+    }
+
+    fn zero(&self, v: &Value) -> R<ZeroState> {
+        let a = match v {
+            Value::Array(a) if a.len() >= 4 => a,
+            _ => return Err(self.fail(v, "is not an array of 4 elements")),
+        };
+        let status_field = format!("{}.status", self.name);
+        let status = match a[0].as_u64() {
+            Some(s @ 0..=3) => s as u8,
+            _ => return Err(self.sub(&status_field).fail(&a[0], "is not 0, 1, 2 or 3")),
+        };
+        let at = |k: usize| format!("{}.offset_dps[{k}]", self.name);
+        Ok(ZeroState {
+            status,
+            offset_dps: [
+                self.sub(&at(0)).float(&a[1])?,
+                self.sub(&at(1)).float(&a[2])?,
+                self.sub(&at(2)).float(&a[3])?,
+            ],
+        })
     }
 
     fn effects(&self, v: &Value) -> R<BTreeMap<String, AxisEffects>> {
@@ -468,7 +504,7 @@ fn rate_from(a: &[Value], what: &str) -> R<RateMessage> {
     Ok(m)
 }
 
-/// Decode a state payload (with or without the appended `effects` element).
+/// Decode a state payload (with or without the appended `effects` and `zero` elements).
 pub fn decode_state(payload: &[u8]) -> Result<StateMessage, DecodeError> {
     let a = unpack(payload, "state")?;
     let (what, n) = ("state", &STATE_FIELDS);
@@ -482,6 +518,17 @@ pub fn decode_state(payload: &[u8]) -> Result<StateMessage, DecodeError> {
         .effects(v)?,
         None => BTreeMap::new(),
     };
+    let zero = match a.get(14) {
+        Some(v) => Some(
+            F {
+                what,
+                i: 14,
+                name: "zero",
+            }
+            .zero(v)?,
+        ),
+        None => None,
+    };
     Ok(StateMessage {
         seq: field(what, n, 2).u64(&a[2])?,
         sensor_time_s: field(what, n, 3).finite(&a[3])?,
@@ -493,6 +540,7 @@ pub fn decode_state(payload: &[u8]) -> Result<StateMessage, DecodeError> {
         bias_dps: vec3(what, n, a, 9)?,
         flags: field(what, n, 12).u64(&a[12])?,
         effects,
+        zero,
     })
 }
 

@@ -22,7 +22,7 @@ pub mod subscriber;
 
 pub use decode::{
     decode_calibration_info, decode_health, decode_rate, decode_state, CalibrationInfo,
-    DecodeError, HealthMessage, RateMessage, StateMessage,
+    DecodeError, HealthMessage, RateMessage, StateMessage, ZeroState,
 };
 pub use stats::{LatencyStats, StreamStats};
 pub use subscriber::{keys, Error, Keys, Subscriber, SubscriberStats};

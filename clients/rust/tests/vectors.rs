@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use gyrotherm_client::decode::{
     decode_calibration_info, decode_health, decode_rate, decode_state, AxisEffects, HealthMessage,
+    ZeroState,
 };
 use serde_json::Value as J;
 
@@ -164,6 +165,14 @@ fn check_effects(got: &BTreeMap<String, AxisEffects>, want: &J, at: &str) {
     }
 }
 
+fn check_zero(got: &Option<ZeroState>, want: &J, at: &str) {
+    let z = got
+        .as_ref()
+        .unwrap_or_else(|| panic!("{at}: no zero decoded, vector says {want}"));
+    assert_eq!(Some(u64::from(z.status)), want["status"].as_u64(), "{at}.status");
+    eq_f64x3(&z.offset_dps, &want["offset_dps"], &format!("{at}.offset_dps"));
+}
+
 fn check_health(h: &HealthMessage, want_fields: &[(String, J)], at: &str) {
     let mut seen = BTreeSet::new();
     for (name, want) in want_fields {
@@ -262,9 +271,13 @@ fn every_vector_decodes_to_its_fields() {
                         "bias_dps" => eq_f64x3(&m.bias_dps, want, &a),
                         "flags" => eq_u64(m.flags, want, &a),
                         "effects" => check_effects(&m.effects, want, &a),
+                        "zero" => check_zero(&m.zero, want, &a),
                         other => panic!("{a}: field {other:?} unknown to this test"),
                     }
                     names.insert(f.clone());
+                }
+                if !names.contains("zero") {
+                    assert!(m.zero.is_none(), "{name}: no zero element, decoded {:?}", m.zero);
                 }
                 if !names.contains("effects") {
                     assert!(

@@ -6,7 +6,7 @@ the hot path); element 0 is the message kind, element 1 the schema version::
     rate    [1, 1, seq, sensor_time_s, receive_time_s,
              rate_x, rate_y, rate_z, raw_x, raw_y, raw_z, bias_x, bias_y, bias_z, flags]
     state   [2, 1, seq, sensor_time_s, receive_time_s, temperature_c, temperature_std_c,
-             delta_t_c, delta_t_std_c, bias_x, bias_y, bias_z, flags, {effects}]
+             delta_t_c, delta_t_std_c, bias_x, bias_y, bias_z, flags, {effects}, [zero]]
     health  [3, 1, seq, sensor_time_s | nil, receive_time_s, uptime_s, frames_received,
              frames_published, {reason: count}, flags, calibration_id, counter_jumps]
     calibration reply
@@ -25,6 +25,10 @@ the hot path); element 0 is the message kind, element 1 the schema version::
 * ``effects`` (state, appended within schema 1, present only while a calibration's
   compensator runs): ``{axis: [structure_temperature_c, hysteresis_h,
   hysteresis_direction, t_on_s, effects_bias_dps]}`` (:class:`AxisEffects`).
+* ``zero`` (state, appended within schema 1, present only when the daemon runs a
+  boot-time zero; ``effects`` is then always written, ``{}`` when empty):
+  ``[status, zero_x_dps, zero_y_dps, zero_z_dps]`` (:class:`ZeroState`; status
+  0 off, 1 pending, 2 done, 3 failed; the offsets are part of ``bias_dps``).
 
 Version rule: a decoder accepts only the schema version it knows (1). Fields may be
 *appended* within a version (decoders ignore trailing elements) and new flag bits
@@ -104,6 +108,13 @@ class StatusFlags(enum.IntFlag):
     #: bit 11: the time since power-on fed to the calibration's effects was outside
     #: [0, t_on_max_s] (``warmup``/``drift``, docs/model.md §8): clamped to the limit.
     T_ON_CLAMPED = 1 << 11
+    #: bit 12: a boot-time zero is configured and not measured yet (the vehicle has
+    #: not been at rest long enough since power-on): the gyro's switch-on offset is
+    #: still in the rate (docs/model.md, "Boot-time zero").
+    ZERO_PENDING = 1 << 12
+    #: bit 13: the boot-time zero found no rest window before its deadline: the
+    #: switch-on offset stays in the rate until the next power-on.
+    ZERO_FAILED = 1 << 13
 
 
 class AxisEffects(NamedTuple):
@@ -119,6 +130,15 @@ class AxisEffects(NamedTuple):
     """Time since the gyro's power-on fed to the step (unclamped), s."""
     effects_bias_dps: float
     """The additive effects' part of the bias (without the base polynomial), °/s."""
+
+
+class ZeroState(NamedTuple):
+    """The boot-time zero in a state message (docs/model.md, "Boot-time zero")."""
+
+    status: int
+    """0 off, 1 pending, 2 done, 3 failed (:class:`gyrotherm.compensation.ZeroStatus`)."""
+    offset_dps: Vec3
+    """z per axis (x, y, z), °/s: included in ``bias_dps``; zeros unless done."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -150,6 +170,9 @@ class StateMessage:
     effects: Mapping[str, AxisEffects] = field(default_factory=dict)
     """Per axis (appended in schema 1): empty without a running compensator or from a
     publisher that predates it."""
+    zero: ZeroState | None = None
+    """The boot-time zero (appended in schema 1): None when the daemon runs none, or
+    from a publisher that predates it."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -233,14 +256,18 @@ def encode_rate_values(
 
 
 def encode_state(msg: StateMessage) -> bytes:
-    """Encode a state message (13-element array; 14 with ``effects``, only when not empty)."""
+    """Encode a state message (13-element array; 14 with ``effects``, only when not
+    empty; 15 with ``zero``, ``effects`` then written even when empty)."""
     b = msg.bias_dps
     out: list[Any] = [2, SCHEMA_VERSION, msg.seq, msg.sensor_time_s, msg.receive_time_s,
            msg.temperature_c, msg.temperature_std_c, msg.delta_t_c, msg.delta_t_std_c,
            b[0], b[1], b[2], int(msg.flags)]  # fmt: skip
-    if msg.effects:
+    if msg.effects or msg.zero is not None:
         out.append({a: [float(e[0]), float(e[1]), int(e[2]), float(e[3]), float(e[4])]
                     for a, e in msg.effects.items()})
+    if msg.zero is not None:
+        z = msg.zero.offset_dps
+        out.append([int(msg.zero.status), float(z[0]), float(z[1]), float(z[2])])
     return _pack(out, "state")
 
 

@@ -34,6 +34,7 @@ from gyrotherm.codecs._wire import (
     RateMessage,
     StateMessage,
     StatusFlags,
+    ZeroState,
 )
 
 _T = TypeVar("_T")
@@ -138,6 +139,16 @@ def _effects(v: Any, i: int, name: str, what: str) -> dict[str, AxisEffects]:
     return out
 
 
+def _zero(v: Any, i: int, name: str, what: str) -> ZeroState:
+    if type(v) is not list or len(v) < 4:
+        raise _fail(what, i, name, v, "is not an array of 4 elements")
+    if type(v[0]) is not int or not 0 <= v[0] <= 3:
+        raise _fail(what, i, f"{name}.status", v[0], "is not 0, 1, 2 or 3")
+    return ZeroState(v[0], (_float(v[1], i, f"{name}.offset_dps[0]", what),
+                            _float(v[2], i, f"{name}.offset_dps[1]", what),
+                            _float(v[3], i, f"{name}.offset_dps[2]", what)))
+
+
 def _opt_health(v: Any, i: int, name: str, what: str) -> HealthMessage | None:
     if v is None:
         return None
@@ -173,7 +184,7 @@ _SPECS: dict[MessageKind, list[tuple[str, _Check]]] = {
 #: Fields appended within schema 1: (name, check, value when the array ends before it).
 _APPENDED: dict[MessageKind, list[tuple[str, _Check, Any]]] = {
     MessageKind.HEALTH: [("counter_jumps", _u64, 0)],
-    MessageKind.STATE: [("effects", _effects, {})],
+    MessageKind.STATE: [("effects", _effects, {}), ("zero", _zero, None)],
 }
 
 
@@ -187,7 +198,7 @@ def _build_rate(v: list[Any]) -> RateMessage:
 
 def _build_state(v: list[Any]) -> StateMessage:
     return StateMessage(v[0], v[1], v[2], v[3], v[4], v[5], v[6], (v[7], v[8], v[9]), v[10],
-                        dict(v[11]) if len(v) > 11 else {})
+                        dict(v[11]) if len(v) > 11 else {}, v[12] if len(v) > 12 else None)
 
 
 def _build_health(v: list[Any]) -> HealthMessage:

@@ -1,5 +1,6 @@
-"""Compensation: bias models in T and ΔT, least-squares fitting, calibration files, and
-the online compensator (base polynomial + effects kernels, one per axis)."""
+"""Compensation: bias models in T and ΔT, least-squares fitting, calibration files,
+the online compensator (base polynomial + effects kernels, one per axis), and the
+boot-time zero."""
 
 from gyrotherm.compensation._calibration import BiasEstimate, Calibration, ValidRange
 from gyrotherm.compensation._calibration_file import (
@@ -12,6 +13,7 @@ from gyrotherm.compensation._fit import (
     METHODS,
     HeldOut,
     Method,
+    RemovedBias,
     RunFeatures,
     default_scaling,
     features,
@@ -19,15 +21,18 @@ from gyrotherm.compensation._fit import (
     fit_per_run,
     leave_one_out,
     mean_coefficients,
+    removed_bias,
     score,
 )
 from gyrotherm.compensation._metrics import ErrorMetrics, RunScore
 from gyrotherm.compensation._models import MODELS, ModelSpec, Scaling, Term, get_model
+from gyrotherm.compensation._zero import BootZero, ZeroConfig, ZeroSeries, ZeroStatus, zero_series
 
 __all__ = [
     "METHODS",
     "MODELS",
     "BiasEstimate",
+    "BootZero",
     "Calibration",
     "CompensatedSeries",
     "Compensator",
@@ -35,11 +40,15 @@ __all__ = [
     "HeldOut",
     "Method",
     "ModelSpec",
+    "RemovedBias",
     "RunFeatures",
     "RunScore",
     "Scaling",
     "Term",
     "ValidRange",
+    "ZeroConfig",
+    "ZeroSeries",
+    "ZeroStatus",
     "default_scaling",
     "features",
     "fit",
@@ -50,5 +59,7 @@ __all__ = [
     "mean_coefficients",
     "parse_calibration",
     "read_calibration",
+    "removed_bias",
     "score",
+    "zero_series",
 ]

@@ -34,6 +34,7 @@ from gyrotherm.codecs import Run
 from gyrotherm.compensation._calibration import Calibration, ValidRange
 from gyrotherm.compensation._metrics import ErrorMetrics, RunScore
 from gyrotherm.compensation._models import ModelSpec, Scaling, get_model
+from gyrotherm.compensation._zero import ZeroConfig, ZeroSeries, zero_series
 from gyrotherm.estimators import EstimatorConfig, estimate_series
 
 FloatArray = NDArray[np.float64]
@@ -230,18 +231,48 @@ def fit_per_run(
     return [fit([r], model, estimator=estimator, scaling=scaling) for r in runs]
 
 
-def score(calibration: Calibration, run: RunFeatures) -> list[RunScore]:
-    """Raw and compensated error metrics of ``run`` under ``calibration``, per axis.
+@dataclass(frozen=True)
+class RemovedBias:
+    """:func:`removed_bias`' result."""
+
+    bias: Mapping[str, tuple[FloatArray, NDArray[np.bool_]]]
+    """Per calibration axis: bias removed on each row (°/s), rows with T or ΔT clamped."""
+    zero: ZeroSeries | None
+    """The boot-time zero (None without one); included in ``bias``."""
+
+
+def removed_bias(calibration: Calibration, run: RunFeatures, *,
+                 zero: ZeroConfig | None = None) -> RemovedBias:
+    """Per calibration axis of ``run``: the bias the daemon removes on each row (°/s)
+    and the rows where T or ΔT was clamped.
 
     Effects (version 2) are evaluated online from the run's first row (their
-    runtime state starts at power-on there; t_on = the run's time column). With a
-    ``rest`` mask only the rest rows are scored (the bias is evaluated on every row)."""
+    runtime state starts at power-on there; t_on = the run's time column). With
+    ``zero`` the boot-time zero is measured as the daemon measures it
+    (:func:`~gyrotherm.compensation._zero.zero_series` on ω − b of every rate axis
+    of the run, 0 bias on an axis the calibration lacks) and added from its
+    accepting row on."""
+    out = {axis: calibration.bias_series(axis, run.temperature_c, run.delta_t_c, run.time_s)
+           for axis in calibration.axes if axis in run.rates_dps}
+    if zero is None:
+        return RemovedBias(out, None)
+    residual = {a: run.rates_dps[a] - out[a][0] if a in out else run.rates_dps[a]
+                for a in run.rates_dps}
+    zs = zero_series(zero, run.time_s, residual)
+    return RemovedBias({a: (b + zs.offset_dps[a], c) for a, (b, c) in out.items()}, zs)
+
+
+def score(calibration: Calibration, run: RunFeatures, *, zero: ZeroConfig | None = None,
+          removed: RemovedBias | None = None) -> list[RunScore]:
+    """Raw and compensated error metrics of ``run`` under ``calibration``, per axis,
+    with the bias of :func:`removed_bias` (effects from the run's first row; the
+    boot-time zero with ``zero``). With a ``rest`` mask only the rest rows are
+    scored (the bias is evaluated on every row). ``truth`` compares with the run's
+    true bias, which excludes the switch-on offset a zero removes. ``removed``: the
+    result of :func:`removed_bias` when the caller has it already (``zero`` unused)."""
     out = []
-    for axis in calibration.axes:
-        if axis not in run.rates_dps:
-            continue
-        bias, clamped = calibration.bias_series(axis, run.temperature_c, run.delta_t_c,
-                                                run.time_s)
+    rb = removed if removed is not None else removed_bias(calibration, run, zero=zero)
+    for axis, (bias, clamped) in rb.bias.items():
         bias, clamped = run.rows(bias), run.rows(clamped)
         raw = run.rows(run.rates_dps[axis])
         truth = run.true_bias_dps.get(axis)

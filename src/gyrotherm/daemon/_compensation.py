@@ -25,18 +25,26 @@ mean the same things: structure temperature, hysteresis, power-on time), else
 its states start at the current estimate (T_s = T, h = 0). t_on is the daemon's
 and always continues. The new compensator is stepped once at the current
 estimate (with a taken-over state that step has dt = 0, which changes nothing).
+
+**Boot-time zero** (optional, :mod:`gyrotherm.compensation._zero`): started at
+each power-on, measured by the pipeline on the rate frames. A restored state
+(the gyro kept running) keeps a zero that was done; another calibration starts
+it again at the next rate frame (z was measured against the old model's bias,
+so it is not valid for the new one); no calibration stops it (nothing is
+removed without one). The same calibration keeps it.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
-from gyrotherm.codecs._wire import AxisEffects, StatusFlags
+from gyrotherm.codecs._wire import AxisEffects, StatusFlags, ZeroState
 from gyrotherm.compensation import Calibration, Compensator
 from gyrotherm.compensation._effects_state import EffectFlags
+from gyrotherm.compensation._zero import BootZero, ZeroConfig, ZeroStatus
 
 log = logging.getLogger("gyrotherm.daemon")
 
@@ -56,6 +64,8 @@ class EffectsSnapshot:
     power_on_s: float
     time_s: float
     state: dict[str, Any]
+    zero: dict[str, Any] | None = field(default=None)
+    """:meth:`BootZero.to_dict` when a zero is configured, else None."""
 
 
 def _same_kinds(a: Calibration, b: Calibration) -> bool:
@@ -65,8 +75,10 @@ def _same_kinds(a: Calibration, b: Calibration) -> bool:
 class Compensation:
     """Bias and bias flags of the latest estimate; see the module docstring."""
 
-    def __init__(self, calibration: Calibration | None, power_on_gap_s: float) -> None:
+    def __init__(self, calibration: Calibration | None, power_on_gap_s: float,
+                 zero: ZeroConfig | None = None) -> None:
         self.power_on_gap_s = power_on_gap_s
+        self.zero = None if zero is None else BootZero(zero)
         self.calibration: Calibration | None = None
         self.compensator: Compensator | None = None
         self.power_on_s = math.nan
@@ -81,6 +93,11 @@ class Compensation:
             return  # the same model: its state continues, nothing is stepped again
         old = self.compensator
         self.calibration, self._cached, self._restore = calibration, None, None
+        if self.zero is not None:
+            if calibration is None:
+                self.zero.stop()
+            else:
+                self.zero.start()  # at the next rate frame (or the power-on)
         if calibration is None:
             self.compensator = None
         elif old is not None and _same_kinds(old.calibration, calibration):
@@ -110,6 +127,7 @@ class Compensation:
                 self.power_on_s, self.time_s, self._cached = snap.power_on_s, snap.time_s, None
                 log.info("effects state restored: power-on at %r s, t_on %.1f s", snap.power_on_s,
                          time_s - snap.power_on_s)
+                self._restore_zero(snap, time_s)
                 return
         elif first and snap is not None:
             log.info("saved effects state not restored: first frame at %r s does not continue "
@@ -117,13 +135,30 @@ class Compensation:
         self.power_on_s, self._cached = time_s, None
         if self.compensator is not None:
             self.compensator.reset()
+            if self.zero is not None:
+                self.zero.start(time_s)
+
+    def _restore_zero(self, snap: EffectsSnapshot, time_s: float) -> None:
+        z = self.zero
+        if z is None:
+            return
+        saved = snap.zero or {}
+        if saved.get("status") == "done":
+            x, y, w = saved["offset_dps"]
+            done = saved.get("done_s")
+            z.restore(ZeroStatus.DONE, (float(x), float(y), float(w)),
+                      math.nan if done is None else float(done))
+            log.info("boot-time zero restored: %s °/s", ", ".join(f"{v:+.5f}" for v in (x, y, w)))
+        else:  # pending or failed before the restart: try again from now
+            z.start(time_s)
 
     def snapshot(self) -> EffectsSnapshot | None:
         """The state to persist, None before the first step."""
         c = self.compensator
         if c is None or math.isnan(self.time_s) or not c.last:
             return None
-        return EffectsSnapshot(self.power_on_s, self.time_s, c.state_dict())
+        return EffectsSnapshot(self.power_on_s, self.time_s, c.state_dict(),
+                               None if self.zero is None else self.zero.to_dict())
 
     def bias(self, time_s: float, temperature_c: float, delta_t_c: float, *, step: bool
              ) -> tuple[tuple[float, float, float], StatusFlags]:
@@ -153,6 +188,11 @@ class Compensation:
             bias, flags = _ZERO, StatusFlags.BIAS_INVALID
         self._cached = (bias, flags)
         return self._cached
+
+    def zero_state(self) -> ZeroState | None:
+        """The boot-time zero for the state message; None when none is configured."""
+        z = self.zero
+        return None if z is None else ZeroState(int(z.status), z.offset_dps)
 
     def axis_effects(self) -> dict[str, AxisEffects]:
         """Per axis, the effects' state after the latest step (the state message's

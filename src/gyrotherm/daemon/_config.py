@@ -28,6 +28,14 @@ Example (every key; relative paths are relative to the config file)::
     [estimator]                       # optional, used only without a calibration
     stale_after_s = 5.0
 
+    [zero]                            # optional: boot-time zero at rest (off without
+    window_s = 10.0                   # the table); every key optional, defaults shown:
+    settle_s = 10.0                   # wait after power-on before the first window, s
+    max_std_dps = 0.5                 # rest check: std of rate − bias per axis, °/s
+    max_step_dps = 0.05               # rest check: half-window means differ by ≤, °/s
+    max_offset_dps = 1.0              # largest offset taken for a switch-on offset, °/s
+    deadline_s = 600.0                # no rest window this long after power-on: failed, s
+
     [zenoh]
     config = "/etc/gyrotherm/zenoh.json5"   # a Zenoh JSON5 file, passed through; or:
     mode = "peer"                           # peer | client | router
@@ -53,6 +61,12 @@ time base change; a saved state is restored only for the same calibration id
 when the first frame continues its time within ``power_on_gap_s``
 (docs/operations.md, "Calibration effects across restarts").
 
+``[zero]`` (default: absent, no zero) turns on the boot-time zero
+(:mod:`gyrotherm.compensation._zero`, docs/model.md "Boot-time zero"): after
+each power-on the daemon measures the switch-on offset the calibration cannot
+know over ``window_s`` at rest, and removes it with the calibration's bias.
+Only with a calibration; the vehicle must be at rest after power-on.
+
 Errors are :class:`gyrotherm.ConfigError` naming the file and the key.
 """
 
@@ -67,6 +81,7 @@ from typing import Any
 from gyrotherm._errors import ConfigError
 from gyrotherm._zenoh import keys, session_config
 from gyrotherm.codecs import DEFAULT_DBC_PATH, SignalMap
+from gyrotherm.compensation._zero import ZeroConfig
 from gyrotherm.estimators import EstimatorConfig
 
 INTERFACES = ("socketcan", "socketcand", "virtual")
@@ -113,6 +128,7 @@ class DaemonConfig:
     health_period_s: float = 1.0
     state_dir: Path | None = None
     power_on_gap_s: float = 30.0
+    zero: ZeroConfig | None = None
     source: str = "<memory>"
 
 
@@ -156,7 +172,7 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
     """Validate a parsed TOML document."""
     base = base_dir or Path.cwd()
     _unknown(data, {"vehicle", "sensor", "calibration", "health_period_s", "can", "estimator",
-                    "zenoh", "state_dir", "power_on_gap_s"}, source)
+                    "zenoh", "state_dir", "power_on_gap_s", "zero"}, source)
     vehicle = _take(data, "vehicle", str, source, None)
     sensor = _take(data, "sensor", str, source, None)
     if vehicle is None or sensor is None:
@@ -246,6 +262,8 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
                                      0.01, 2.0, f"{where}: publish_block_max_s"),
     )
     est_table = _table(data, "estimator", source)
+    zero = (ZeroConfig.from_dict(_table(data, "zero", source), where=f"{source}: [zero]")
+            if "zero" in data else None)
     return DaemonConfig(
         vehicle=vehicle,
         sensor=sensor,
@@ -256,6 +274,7 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
         health_period_s=health,
         state_dir=None if state_dir is None else _path(base, state_dir),
         power_on_gap_s=gap,
+        zero=zero,
         source=source,
     )
 

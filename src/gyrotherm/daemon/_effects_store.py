@@ -6,7 +6,12 @@ written atomically (a temporary file in the same directory, fsync, rename)::
     {"schema": "gyrotherm.effects-state", "version": 1,
      "vehicle": "veh01", "sensor": "imu0", "calibration_id": "3f2a9c0d41e8b7a2",
      "power_on_s": 1700000000.5, "time_s": 1700003600.2,
-     "compensator": {Compensator.state_dict()}}
+     "compensator": {Compensator.state_dict()},
+     "zero": {"status": "done", "offset_dps": [x, y, z], "done_s": t}}   # optional
+
+``zero`` (the boot-time zero, present when one is configured) lets a restart
+that continues the gyro's run keep a zero that was done, instead of needing the
+vehicle at rest again; it is saved with any calibration, with or without effects.
 
 ``power_on_s`` and ``time_s`` (the latest compensator step) are on the sensor's
 clock, s. The daemon restores it only for the same vehicle, sensor and
@@ -57,7 +62,8 @@ def save(path: Path, saved: SavedEffects) -> None:
     s = saved.snapshot
     doc = {"schema": SCHEMA, "version": VERSION, "vehicle": saved.vehicle,
            "sensor": saved.sensor, "calibration_id": saved.calibration_id,
-           "power_on_s": s.power_on_s, "time_s": s.time_s, "compensator": s.state}
+           "power_on_s": s.power_on_s, "time_s": s.time_s, "compensator": s.state,
+           **({} if s.zero is None else {"zero": s.zero})}
     tmp = path.with_name(f".{path.name}.tmp")
     try:
         with open(tmp, "w", encoding="utf-8") as f:
@@ -106,7 +112,29 @@ def load(path: Path) -> SavedEffects | None:
                         _field(doc, "sensor", str, "a string", src),
                         _field(doc, "calibration_id", str, "a string", src),
                         EffectsSnapshot(times["power_on_s"], times["time_s"],
-                                        _field(doc, "compensator", dict, "an object", src)))
+                                        _field(doc, "compensator", dict, "an object", src),
+                                        _zero(doc, src)))
+
+
+def _zero(doc: dict[str, Any], src: str) -> dict[str, Any] | None:
+    if "zero" not in doc:
+        return None
+    z = _field(doc, "zero", dict, "an object", src)
+    if z.get("status") not in ("off", "pending", "done", "failed"):
+        raise CalibrationError(f"{src}: field 'zero.status': expected off, pending, done or "
+                               f"failed, got {z.get('status')!r:.60}")
+    off = z.get("offset_dps")
+    if (not isinstance(off, list) or len(off) != 3 or not all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+            for v in off)):
+        raise CalibrationError(f"{src}: field 'zero.offset_dps': expected 3 finite numbers "
+                               f"(°/s), got {off!r:.60}")
+    done = z.get("done_s")
+    if done is not None and (isinstance(done, bool) or not isinstance(done, int | float)
+                             or not math.isfinite(done)):
+        raise CalibrationError(f"{src}: field 'zero.done_s': expected a finite number or "
+                               f"null, got {done!r:.60}")
+    return {"status": z["status"], "offset_dps": [float(v) for v in off], "done_s": done}
 
 
 class EffectsKeeper:
@@ -143,9 +171,10 @@ class EffectsKeeper:
     def save(self, compensation: Compensation, calibration_id: str, now_s: float, *,
              force: bool = False) -> None:
         """Save when :data:`SAVE_PERIOD_S` passed since the last save (``now_s``:
-        monotonic), or at once with ``force``; only a calibration with effects."""
+        monotonic), or at once with ``force``; only a calibration with effects, or
+        any calibration when a boot-time zero is configured."""
         cal = compensation.calibration
-        if (self.path is None or cal is None or cal.version == 1
+        if (self.path is None or cal is None or (cal.version == 1 and compensation.zero is None)
                 or not (force or now_s - self._last_save_s >= SAVE_PERIOD_S)):
             return
         snap = compensation.snapshot()

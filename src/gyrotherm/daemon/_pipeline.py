@@ -27,6 +27,13 @@ slow subscriber gave it up — see :mod:`gyrotherm.daemon._sink`).
 Before the first temperature frame rates are published uncorrected
 (bias 0) with ``TEMPERATURE_STALE | ESTIMATOR_WARMUP`` set.
 
+Boot-time zero (``zero``, optional; :mod:`gyrotherm.compensation._zero`): while
+it is pending each rate frame's residual ω − b is pushed to it (frames flagged
+stale, bias-invalid, sensor-fault or counter-jump discard the open window);
+``ZERO_PENDING`` is set until a window is accepted, from then on the bias
+removed is b + z, or ``ZERO_FAILED`` after its deadline. Once decided, the
+rate path is the same as without a zero.
+
 Time stamps: each stream (rate, temperature) has a window around a reference
 stamp; frames outside it are dropped as ``bad_timestamp`` and a run of
 consistent ones changes the time base (:mod:`gyrotherm.daemon._timewindow`,
@@ -53,6 +60,7 @@ from gyrotherm.codecs._wire import (
     encode_state,
 )
 from gyrotherm.compensation import Calibration
+from gyrotherm.compensation._zero import ZeroConfig, ZeroStatus
 from gyrotherm.daemon._compensation import POWER_ON_GAP_S, Compensation
 from gyrotherm.daemon._timewindow import (
     BAD_TIMESTAMP,
@@ -74,6 +82,10 @@ NO_SUBSCRIBER = "no_subscriber"
 #: Drop reason: an unexpected exception while processing the frame (logged).
 INTERNAL_ERROR = "internal_error"
 _ZERO = (0.0, 0.0, 0.0)
+#: Rate frames that cannot count towards the boot-time zero.
+_ZERO_UNUSABLE = int(StatusFlags.TEMPERATURE_STALE | StatusFlags.BIAS_INVALID
+                     | StatusFlags.SENSOR_FAULT | StatusFlags.COUNTER_JUMP
+                     | StatusFlags.NO_CALIBRATION)
 __all__ = ["BAD_TIMESTAMP", "MAX_ABS_TIME_S", "MAX_TIME_JUMP_S", "TIME_BASE_FRAMES",
            "Counters", "Pipeline", "Sink"]
 
@@ -120,13 +132,15 @@ class Pipeline(TimeWindow):
         max_time_jump_s: float = MAX_TIME_JUMP_S,
         time_base_frames: int = TIME_BASE_FRAMES,
         power_on_gap_s: float = POWER_ON_GAP_S,
+        zero: ZeroConfig | None = None,
     ) -> None:
         self._init_window(max_time_jump_s, time_base_frames)
         if not (math.isfinite(power_on_gap_s) and power_on_gap_s > 0):
             raise ConfigError(f"power_on_gap_s = {power_on_gap_s!r}: must be a positive "
                               "number of seconds")
         self._power_on_gap_s = float(power_on_gap_s)
-        self._compensation = Compensation(None, self._power_on_gap_s)
+        self._compensation = Compensation(None, self._power_on_gap_s, zero)
+        self._zeroing = False  # a boot-time zero is pending: rate frames feed it
         self._decoder = decoder
         self._check_counters = check_counters
         self._sink = sink
@@ -230,6 +244,16 @@ class Pipeline(TimeWindow):
             self._last_counter = s.counter
         b0, b1, b2 = self._bias
         x, y, z = s.rate_x_dps, s.rate_y_dps, s.rate_z_dps
+        if self._zeroing:
+            zero = self._compensation.zero
+            assert zero is not None
+            if flags & _ZERO_UNUSABLE:
+                zero.interrupt()
+            elif zero.push(t, x - b0, y - b1, z - b2):  # decided: the bias changes
+                self._refresh_bias(step=False)
+                flags = self._flags | (flags & (StatusFlags.TEMPERATURE_STALE
+                                                | StatusFlags.COUNTER_JUMP))
+                b0, b1, b2 = self._bias
         try:
             routed = self._sink.put_rate(encode_rate_values(
                 self._rate_seq, t, receive_time_s, x - b0, y - b1, z - b2, x, y, z,
@@ -283,6 +307,7 @@ class Pipeline(TimeWindow):
         non-finite one) and ``BIAS_INVALID``."""
         est = self.last_estimate
         flags = StatusFlags.NONE
+        modelled = not (est is None or math.isnan(est.temperature_c))
         if est is None or math.isnan(est.temperature_c):
             self._bias = _ZERO
             flags |= StatusFlags.TEMPERATURE_STALE | StatusFlags.ESTIMATOR_WARMUP
@@ -296,6 +321,18 @@ class Pipeline(TimeWindow):
             self._bias, bias_flags = self._compensation.bias(
                 est.time_s, est.temperature_c, est.delta_t_c, step=step)
             flags |= bias_flags
+        zero = self._compensation.zero
+        status = ZeroStatus.OFF if zero is None else zero.status
+        self._zeroing = status == ZeroStatus.PENDING
+        if status == ZeroStatus.PENDING:
+            flags |= StatusFlags.ZERO_PENDING
+        elif status == ZeroStatus.FAILED:
+            flags |= StatusFlags.ZERO_FAILED
+        elif (status == ZeroStatus.DONE and zero is not None and modelled
+              and not flags & StatusFlags.BIAS_INVALID):
+            z0, z1, z2 = zero.offset_dps
+            b0, b1, b2 = self._bias
+            self._bias = (b0 + z0, b1 + z1, b2 + z2)
         if self.calibration is None:
             flags |= StatusFlags.NO_CALIBRATION
         if self._sensor_status:
@@ -311,7 +348,8 @@ class Pipeline(TimeWindow):
             self._state_seq, sensor_time_s, receive_time_s,
             est.temperature_c if est else nan, est.temperature_std_c if est else nan,
             est.delta_t_c if est else nan, est.delta_t_std_c if est else nan,
-            self._bias, self._flags, self._compensation.axis_effects())
+            self._bias, self._flags, self._compensation.axis_effects(),
+            self._compensation.zero_state())
         try:
             routed = self._sink.put_state(encode_state(msg))
         except PublishError:

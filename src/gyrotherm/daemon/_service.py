@@ -171,7 +171,7 @@ class Daemon:
             pipeline = Pipeline(decoder, sink, calibration=self._calibration,
                                 estimator=cfg.estimator,
                                 check_counters=cfg.can.on_counter_jump == "deliver",
-                                power_on_gap_s=cfg.power_on_gap_s)
+                                power_on_gap_s=cfg.power_on_gap_s, zero=cfg.zero)
             self._pipeline = pipeline
             self.effects_keeper.restore(pipeline.compensation, self._calibration_id)
             stack.callback(self._save_effects, pipeline, force=True)

@@ -1,0 +1,254 @@
+"""Boot-time zero: the gyro's switch-on offset, measured at rest after power-on.
+
+A MEMS gyro's bias has a run-to-run part, the switch-on offset (turn-on bias
+repeatability), that no model in T, ΔT or time can predict: it is drawn anew at
+each power-on. A calibration's intercept carries the mean offset of its training
+runs, which is an error of every later run (docs/findings.md §5). PX4 and
+ArduPilot zero the gyro at rest at boot; gyrotherm does the same *after* the
+thermal model, so the zero removes only what the model cannot know::
+
+    z_a = mean over the window of (ω_a − b_a)            per axis a, °/s
+
+where ω is the raw rate and b the calibration's bias on the same sample. From
+the sample that closes an accepted window on, the bias removed is ``b + z``
+(the wire's ``bias_dps`` includes z).
+
+**Window.** It opens at the first usable sample at least ``settle_s`` after the
+start (power-on, or the load of another calibration) and closes at the first
+sample at least ``window_s`` after it opened. It is **accepted** when, on every
+axis, the residual ω − b has a standard deviation ≤ ``max_std_dps``, the means
+of the window's two halves (split at ``window_s``/2) differ by ≤
+``max_step_dps``, and |z| ≤ ``max_offset_dps``; each half needs two samples.
+Otherwise a new window opens at the closing sample. An unusable sample (a
+non-finite residual; on the vehicle also a frame flagged stale, bias-invalid,
+sensor-fault or counter-jump) discards the open window; the next usable sample
+opens a new one. No accepted window within ``deadline_s`` of the start: the
+zero **failed**, z = 0 until the next start.
+
+Limits: the gyro alone cannot tell a constant-rate rotation from an offset.
+A steady turn slower than ``max_offset_dps`` during the window is taken for an
+offset (as ArduPilot's boot calibration would): zero the gyro at rest.
+
+One implementation serves the daemon (:meth:`BootZero.push` per rate frame) and
+offline evaluation (:func:`zero_series` loops over rows with the same object),
+so both give the same z bit for bit on the same samples.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from gyrotherm._errors import ConfigError
+
+FloatArray = NDArray[np.float64]
+_AXES = ("x", "y", "z")
+
+
+class ZeroStatus(enum.IntEnum):
+    """Where the boot-time zero stands (the state message's ``zero`` element 0)."""
+
+    OFF = 0
+    """Not configured (or no calibration loaded)."""
+    PENDING = 1
+    """Started, no window accepted yet: the switch-on offset is still in the rate."""
+    DONE = 2
+    """A window was accepted: z is removed."""
+    FAILED = 3
+    """No window accepted within ``deadline_s``: z = 0 until the next start."""
+
+
+_LIMITS: dict[str, tuple[float, float]] = {
+    "window_s": (1.0, 3600.0),
+    "settle_s": (0.0, 3600.0),
+    "max_std_dps": (1e-6, 100.0),
+    "max_step_dps": (1e-6, 10.0),
+    "max_offset_dps": (1e-6, 100.0),
+    "deadline_s": (1.0, 86400.0),
+}
+
+
+@dataclass(frozen=True)
+class ZeroConfig:
+    """The boot-time zero's settings (module docstring); bounds in :data:`_LIMITS`."""
+
+    window_s: float = 10.0
+    """Length of the rest window averaged, s."""
+    settle_s: float = 10.0
+    """Wait after the start before the first window opens (the estimator's warm-up), s."""
+    max_std_dps: float = 0.5
+    """Rest check: largest standard deviation of ω − b in the window, per axis, °/s."""
+    max_step_dps: float = 0.05
+    """Rest check: largest difference between the two half-window means, per axis, °/s."""
+    max_offset_dps: float = 1.0
+    """Largest |z| accepted, per axis, °/s (a larger one is motion, not an offset)."""
+    deadline_s: float = 600.0
+    """Give up this long after the start, s (then ``FAILED``, z = 0)."""
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            lo, hi = _LIMITS[f.name]
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise ConfigError(f"zero.{f.name}: expected a number, got {v!r}")
+            if not (math.isfinite(v) and lo <= v <= hi):
+                raise ConfigError(f"zero.{f.name} = {v!r} is outside [{lo:g}, {hi:g}]")
+            object.__setattr__(self, f.name, float(v))
+        if self.settle_s + self.window_s > self.deadline_s:
+            raise ConfigError(f"zero.deadline_s = {self.deadline_s:g} s leaves no room for "
+                              f"settle_s + window_s = {self.settle_s + self.window_s:g} s")
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, where: str = "zero") -> ZeroConfig:
+        """From a mapping (a TOML table); unknown or invalid fields are a ConfigError."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ConfigError(f"{where}: unknown key(s) {unknown}; known: {sorted(known)}")
+        try:
+            return cls(**data)
+        except ConfigError as exc:
+            raise ConfigError(f"{where}: {exc}") from exc
+
+    def to_dict(self) -> dict[str, float]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+class BootZero:
+    """The zero's state machine for one sensor (three axes); see the module docstring."""
+
+    def __init__(self, config: ZeroConfig) -> None:
+        self.config = config
+        self.status = ZeroStatus.OFF
+        self.offset_dps: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        self.start_s = math.nan  # NaN: the start is the next pushed sample
+        self.done_s = math.nan  # sensor time of the sample that closed the accepted window
+        self.windows_rejected = 0
+        self._open_s = math.nan
+        self._sums = [0.0] * 14  # per half h at 7·h: n, Σx, Σy, Σz, Σx², Σy², Σz²
+
+    def start(self, time_s: float = math.nan) -> None:
+        """(Re)start: pending from ``time_s`` (s, sensor time; NaN: the next sample)."""
+        self.status, self.offset_dps = ZeroStatus.PENDING, (0.0, 0.0, 0.0)
+        self.start_s, self.done_s, self._open_s = time_s, math.nan, math.nan
+
+    def stop(self) -> None:
+        """Off: nothing removed, nothing measured."""
+        self.status, self.offset_dps = ZeroStatus.OFF, (0.0, 0.0, 0.0)
+        self.start_s = self.done_s = self._open_s = math.nan
+
+    def restore(self, status: ZeroStatus, offset_dps: tuple[float, float, float],
+                done_s: float) -> None:
+        """Continue a zero measured before a restart (only ``DONE`` keeps its offset)."""
+        if status == ZeroStatus.DONE:
+            self.status, self.offset_dps, self.done_s = status, offset_dps, done_s
+            self._open_s = math.nan
+
+    def interrupt(self) -> None:
+        """An unusable sample: the open window is discarded."""
+        self._open_s = math.nan
+
+    def push(self, time_s: float, x: float, y: float, z: float) -> bool:
+        """One sample's residual ω − b (°/s) at ``time_s`` (s); True when the status
+        changed (accepted, or failed at the deadline): the caller's bias changes."""
+        if self.status != ZeroStatus.PENDING:
+            return False
+        if math.isnan(self.start_s):
+            self.start_s = time_s
+        since = time_s - self.start_s
+        c = self.config
+        if since > c.deadline_s:
+            self.status, self._open_s = ZeroStatus.FAILED, math.nan
+            return True
+        if since < c.settle_s:
+            return False
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+            self._open_s = math.nan
+            return False
+        if math.isnan(self._open_s):
+            self._open(time_s)
+        elif time_s - self._open_s >= c.window_s:
+            if self._accept(time_s):
+                return True
+            self.windows_rejected += 1
+            self._open(time_s)
+        s = self._sums
+        i = 0 if time_s - self._open_s < c.window_s / 2 else 7
+        s[i] += 1.0
+        s[i + 1] += x
+        s[i + 2] += y
+        s[i + 3] += z
+        s[i + 4] += x * x
+        s[i + 5] += y * y
+        s[i + 6] += z * z
+        return False
+
+    def _open(self, time_s: float) -> None:
+        self._open_s = time_s
+        self._sums = [0.0] * 14
+
+    def _accept(self, time_s: float) -> bool:
+        s, c = self._sums, self.config
+        n0, n1 = s[0], s[7]
+        if n0 < 2 or n1 < 2:
+            return False
+        n = n0 + n1
+        offset = []
+        for k in range(3):
+            mean = (s[1 + k] + s[8 + k]) / n
+            var = max(0.0, (s[4 + k] + s[11 + k]) / n - mean * mean)
+            step = abs(s[1 + k] / n0 - s[8 + k] / n1)
+            if math.sqrt(var) > c.max_std_dps or step > c.max_step_dps \
+                    or abs(mean) > c.max_offset_dps:
+                return False
+            offset.append(mean)
+        self.status, self.done_s, self._open_s = ZeroStatus.DONE, time_s, math.nan
+        self.offset_dps = (offset[0], offset[1], offset[2])
+        return True
+
+    def to_dict(self) -> dict[str, Any]:
+        """What a restarted daemon needs (``status``, ``offset_dps``, ``done_s``)."""
+        return {"status": self.status.name.lower(), "offset_dps": list(self.offset_dps),
+                "done_s": None if math.isnan(self.done_s) else self.done_s}
+
+
+@dataclass(frozen=True)
+class ZeroSeries:
+    """:func:`zero_series`' result: the zero removed on each row (°/s, per axis) and
+    how the zero ended."""
+
+    offset_dps: Mapping[str, FloatArray]
+    status: ZeroStatus
+    done_s: float
+    windows_rejected: int
+
+
+def zero_series(config: ZeroConfig, time_s: FloatArray,
+                residual_dps: Mapping[str, FloatArray]) -> ZeroSeries:
+    """The zero along a recorded run started at its first row (power-on), as the
+    daemon measures it: ``residual_dps`` is ω − b per axis (°/s, a missing axis
+    counts as 0); the result's offsets are 0 before the accepting row and z from
+    it on. Rows are pushed one by one only until the zero is decided."""
+    n = len(time_s)
+    cols = [np.asarray(residual_dps[a], dtype=np.float64) if a in residual_dps
+            else np.zeros(n) for a in _AXES]
+    zero = BootZero(config)
+    zero.start(float(time_s[0]) if n else math.nan)
+    decided = n
+    for i in range(n):
+        if zero.push(float(time_s[i]), float(cols[0][i]), float(cols[1][i]), float(cols[2][i])):
+            decided = i
+            break
+    out = {}
+    for k, a in enumerate(_AXES):
+        if a in residual_dps:
+            v = np.zeros(n)
+            v[decided:] = zero.offset_dps[k]
+            out[a] = v
+    return ZeroSeries(out, zero.status, zero.done_s, zero.windows_rejected)
