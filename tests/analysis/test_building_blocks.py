@@ -203,6 +203,9 @@ def test_synth_readout_is_quantised_and_held() -> None:
     ro = characterise(run, "x")
     assert ro.lsb_c == pytest.approx(0.125)
     assert ro.period_s == pytest.approx(1.3, abs=0.05)  # 1.28 s on a 10 Hz grid
+    # the refresh itself, not rounded to the grid: what the estimator's slots must use
+    # (1.3-s slots skip a 1.28-s reading every 83 s and fuse others up to 1.3 s late)
+    assert ro.refresh_period_s == pytest.approx(1.28, abs=0.002)
     assert ro.sample_rate_hz == pytest.approx(10.0, rel=0.01)
     # the sensor (case) leads the die: the die is a lagged copy
     assert truth.die_tau_s < 10 and 80 <= truth.case_tau_s <= 250

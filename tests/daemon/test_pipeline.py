@@ -63,6 +63,33 @@ def test_played_run_equals_offline_compensation_above_the_sensor_rate(
         assert np.max(np.abs(naive.delta_t_c - offline.delta_t_c)) > 0.1
 
 
+def test_frames_faster_than_the_sensor_refresh_are_fused_once_per_slot(
+    stream_calibration: Calibration,
+) -> None:
+    """A gyro whose temperature refreshes every 1.28 s but is sent with every 10 Hz rate
+    frame (the held reading repeated), under a calibration fitted with
+    ``update_period_s`` = 1.28 s: the daemon fuses one frame per slot floor(t / 1.28),
+    as offline features do, so the corrected rates still equal offline evaluation to
+    1e-9 °/s. Fusing every frame (the held value 13 times) was the old daemon rule."""
+    run = chamber_runs([5], seed=2, rate_hz=10.0, hold_s=120)[0].slice(0, 6000)
+    first = np.r_[0, np.flatnonzero(np.diff(np.floor(run.time_s / 1.28 + 1e-9))) + 1]
+    held = np.repeat(run.temperature_c[first], np.diff(np.r_[first, len(run)]))
+    run = replace(run, temperature_c=held, metadata={})  # nothing says 1.28 s
+    assert run.temperature_period_s() is None
+    cal = replace(stream_calibration,
+                  estimator=replace(stream_calibration.estimator, update_period_s=1.28))
+    sink = RecordingSink()
+    pipe = Pipeline(FrameDecoder(), sink, calibration=cal)
+    for msg in run_frames(run, FrameEncoder()):  # a temperature frame with every row
+        pipe.process(msg, 1.0e9)
+    assert pipe.counters().drops == {}
+    offline = assert_offline_compensation([decode_rate(p).rate_dps for p in sink.rates], run,
+                                          cal)
+    # the negative control: fusing every frame (the old daemon rule) is visibly different
+    naive = features(run, replace(cal.estimator, update_period_s=1e-9))
+    assert np.max(np.abs(naive.delta_t_c - offline.delta_t_c)) > 0.1
+
+
 def test_every_frame_is_published_or_dropped_by_reason(
     short_runs: list[Run], stream_calibration: Calibration
 ) -> None:

@@ -54,6 +54,9 @@ class Readout:
     rate_lsb_dps: float
     sample_noise_dps: float
     """Per-sample standard deviation of the rate's white part, °/s (first differences / √2)."""
+    refresh_period_s: float = 0.0
+    """The readout's refresh period, not rounded to the row interval (mean of the single
+    refresh intervals, e.g. 1.28 s where ``period_s`` says 1.3 s at 10 Hz), s; 0: unknown."""
 
 
 @dataclass(frozen=True)
@@ -100,6 +103,13 @@ def characterise(run: Run, axis: str) -> Readout:
         gaps = np.diff(t[change])
         period = max(dt, float(np.percentile(gaps, 10)))
         period = dt * round(period / dt) if period > 1.5 * dt else dt
+    refresh = period
+    if period > 1.5 * dt:  # Σ gaps / Σ refreshes they span, over gaps < 10 periods
+        gaps = np.diff(t[change])
+        gaps = gaps[gaps < 10 * period]
+        k = np.round(gaps / period)
+        if np.sum(k) > 0:
+            refresh = float(np.sum(gaps) / np.sum(k))
     fresh_idx = np.r_[0, change] if period > 1.5 * dt else np.arange(len(t))
     lsb = _grid_step(temp[: min(len(temp), 200_000)], floor=1e-7)
     fresh = temp[fresh_idx]
@@ -113,12 +123,14 @@ def characterise(run: Run, axis: str) -> Readout:
         sample_rate_hz=1.0 / dt,
         rate_lsb_dps=rate_lsb,
         sample_noise_dps=float(np.std(np.diff(rate)) / math.sqrt(2)),
+        refresh_period_s=refresh,
     )
 
 
 def estimator_for(readouts: Sequence[Readout], tau_s: float = DEFAULT_TAU_S) -> EstimatorConfig:
     """Estimator settings matching the readout: fed once per max(period, 1 s)."""
-    period = max(float(np.median([r.period_s for r in readouts])), BLOCK_S)
+    period = max(float(np.median([r.refresh_period_s or r.period_s for r in readouts])),
+                 BLOCK_S)
     lsb = float(np.median([r.lsb_c for r in readouts]))
     noise = float(np.median([r.noise_c for r in readouts]))
     # a quantised, noiseless-looking reading: its noise is the quantisation itself

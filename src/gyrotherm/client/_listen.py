@@ -6,9 +6,11 @@ One line per update, at most ``--max-hz`` (default 10) lines a second::
       flags=T_CLAMPED  gaps=1/3  lat p50=0.37 p99=4.71 ms          (one line on screen)
 
 (``raw``/``corr``: raw and corrected rate per axis x y z, °/s; ``T``/``dT`` from the
-latest state message; ``gaps`` = gap count / missing messages on the rate stream;
-latency as :class:`gyrotherm.client.Subscriber` measures it.) It exits after
-``--count`` rate messages or ``--timeout-s`` seconds, printing per-stream totals.
+latest state message, with ``zero pending|done[x y z]|failed`` when the daemon runs a
+boot-time zero (its offsets, °/s, are part of the correction); ``gaps`` = gap count /
+missing messages on the rate stream; latency as :class:`gyrotherm.client.Subscriber`
+measures it.) It exits after ``--count`` rate messages or ``--timeout-s`` seconds,
+printing per-stream totals.
 
 It first says on stderr what it waits for (the key expressions and the endpoint),
 and gives up when no message at all (rate, state or health) arrived within
@@ -89,6 +91,10 @@ def format_line(
         parts.append("# no rate yet")
     if state is not None:
         parts.append(f"T {state.temperature_c:.2f} C  dT {state.delta_t_c:+.3f} C")
+        z = state.zero
+        if z is not None:
+            name = {0: "off", 1: "pending", 2: "done", 3: "failed"}.get(z.status, str(z.status))
+            parts.append(f"zero {name}" + (f"[{_vec(z.offset_dps)}]" if z.status == 2 else ""))
     flags = rate.flags if rate is not None else (state.flags if state else StatusFlags.NONE)
     lat = rate_stats.latency
     parts.append(f"flags={_flags_text(flags)}")

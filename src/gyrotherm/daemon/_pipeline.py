@@ -4,7 +4,12 @@ Pure processing, no I/O of its own: frames go in through :meth:`Pipeline.process
 payloads leave through a :class:`Sink` (Zenoh publishers in the daemon, lists in
 tests). Per rate frame it only decodes, subtracts a cached bias, encodes and
 publishes; the estimator and the compensator (:mod:`._compensation`) run per *temperature* frame,
-where T and ΔT change.
+where T and ΔT change. With an estimator ``update_period_s`` P > 0 (a calibration
+fitted on a sensor that refreshes every P s) a temperature frame is fused only when
+it opens a new slot ``floor(t / P)``, the rule offline features use
+(:func:`gyrotherm.estimators.estimate_series`): a sensor that repeats its held
+reading in faster frames is fused once per refresh, as in the fit; the other frames
+step the compensator at the unchanged estimate.
 
 Accounting: every frame handed to :meth:`process` is either published (a rate
 frame as a ``rate`` message, a temperature frame as a ``state`` message) or
@@ -154,6 +159,7 @@ class Pipeline(TimeWindow):
         self._last_counter: int | None = None
         self.last_sensor_time_s: float | None = None
         self._last_temperature_s = -math.inf
+        self._temperature_slot = math.nan  # floor(t / update_period_s) of the last fused frame
         self._sensor_status = 0  # status signal of the latest temperature frame
         self.calibration: Calibration | None = None
         self._estimator = TemperatureEstimator(self._default_estimator)
@@ -291,7 +297,13 @@ class Pipeline(TimeWindow):
         self._temperature_run_n = 0
         self._temperature_rx_s = receive_time_s
         self._temperature_dropping = False
-        self.last_estimate = self._estimator.update(t, s.temperature_c)
+        period = self._estimator.config.update_period_s
+        slot = math.floor(t / period + 1e-9) if period > 0 else math.nan
+        if period <= 0 or slot != self._temperature_slot or not self._estimator.initialised:
+            self.last_estimate = self._estimator.update(t, s.temperature_c)
+            self._temperature_slot = slot
+        else:  # the sensor's held reading, already fused in this slot (as the fit fed it)
+            self.last_estimate = self._estimator.estimate(t)
         self._last_temperature_s = t
         self._sensor_status = s.status or 0
         self._refresh_bias(step=True)
