@@ -293,6 +293,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                    f"{QUICK.n_train} training runs) instead of {FULL.duration_s:g} s at "
                    f"{FULL.rate_hz:g} Hz, {FULL.n_train}")
     p.add_argument("--json", metavar="OUT", help="also write the rows as JSON here")
+    p.add_argument("--seed", type=int, default=SEED,
+                   help=f"generator seed (default {SEED}, the one of record; others are "
+                   "robustness checks, docs/findings.md §5)")
     p.add_argument("--effects", nargs="+", choices=(*SYNTH_EFFECTS, "none"),
                    default=[*SYNTH_EFFECTS, "none"], help="subset of rows (default: all)")
     args = p.parse_args(argv)
@@ -300,14 +303,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     start = time.perf_counter()
     rows = []
     for effect in args.effects:
-        rows.append(one_effect(effect, s))
+        rows.append(one_effect(effect, s, args.seed))
         r = rows[-1]
         print(f"deployed_gain: {effect}: offline {r['offline_gain']:.2f}, deployed "
               f"{r['deployed_gain']:.2f} ({100 * r['deployed_over_offline']:.0f} %)",
               file=sys.stderr, flush=True)
     elapsed = time.perf_counter() - start
     cmd = "scripts/deployed_gain.py" + (" --quick" if args.quick else "")
-    print(f"`.venv/bin/python {cmd}` at commit {commit()}, seed {SEED}, "
+    cmd += f" --seed {args.seed}" if args.seed != SEED else ""
+    print(f"`.venv/bin/python {cmd}` at commit {commit()}, seed {args.seed}, "
           f"{s.n_train} training runs + 1 held-out, {s.duration_s:g} s at {s.rate_hz:g} Hz, "
           f"{elapsed:.0f} s")
     print()
@@ -317,7 +321,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.json:
         out = Path(args.json)
         out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps({"settings": s.__dict__, "seed": SEED, "commit": commit(),
+        out.write_text(json.dumps({"settings": s.__dict__, "seed": args.seed, "commit": commit(),
                                    "elapsed_s": elapsed, "rows": rows}, indent=2) + "\n",
                        encoding="utf-8")
     return 0
