@@ -309,3 +309,21 @@ def test_garbage_raises_only_decode_error(data: bytes) -> None:
             assert str(exc).split(" ", 1)[0] in {"rate", "state", "health", "calibration"}
         else:
             assert isinstance(out, cls)  # garbage that happens to be a valid payload
+
+
+def test_every_flag_is_documented_with_its_bit() -> None:
+    """docs/wire-format.md and docs/operations.md list every flag with its bit and value."""
+    import re
+    from pathlib import Path
+
+    docs = Path(__file__).resolve().parents[2] / "docs"
+    wire = (docs / "wire-format.md").read_text(encoding="utf-8")
+    ops = (docs / "operations.md").read_text(encoding="utf-8")
+    for f in StatusFlags:
+        if not f:
+            continue
+        bit, value = int(f).bit_length() - 1, int(f)
+        hexes = {f"{value:#x}", f"{value:#04x}"}  # 0x01 … 0x80 are written with two digits
+        assert any(re.search(rf"^\| {bit} \| {h} \| `{f.name}` \|", wire, re.M)
+                   for h in hexes), f.name
+        assert re.search(rf"^\| {bit} \| {value} \| `{f.name}` \|", ops, re.M), f.name
