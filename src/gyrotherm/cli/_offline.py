@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import math
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -20,14 +19,13 @@ from gyrotherm.cli._common import (
 )
 from gyrotherm.cli._inputs import add_input_options, load_inputs, recorded_options
 from gyrotherm.cli._tables import coefficient_table, score_table
+from gyrotherm.cli._zero import add_zero_option, zero_option, zero_report
 from gyrotherm.codecs import Run, write_run
 from gyrotherm.compensation import (
     METHODS,
     MODELS,
     Calibration,
     RunFeatures,
-    ZeroConfig,
-    ZeroSeries,
     default_scaling,
     features,
     fit,
@@ -233,10 +231,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     feats = _fitrest.mask_motion(_features_of(runs, cal.estimator, quiet=args.quiet), reports)
     with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
         _fitrest.print_rest_report(reports, use="the scores")
-    zero = _zero_option(args.zero)
+    zero = zero_option(args.zero)
     removed = [removed_bias(cal, f, zero=zero) for f in feats]
     scores = [s for f, rb in zip(feats, removed, strict=True) for s in score(cal, f, removed=rb)]
-    zeros = [_zero_report(f, rb.zero) for f, rb in zip(feats, removed, strict=True)
+    zeros = [zero_report(f, rb.zero) for f, rb in zip(feats, removed, strict=True)
              if rb.zero is not None]
     effects = {a: list(cal.effect_names(a)) for a in cal.axes}
     start = ("each run's first row (power-on: the effects' runtime state starts there, "
@@ -263,30 +261,6 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         _report(args, cal, feats, title=f"evaluate: {args.calibration}",
                 calibration_path=str(args.calibration))
     return 0
-
-
-def _zero_option(spec: str | None) -> ZeroConfig | None:
-    """``--zero [KEY=VALUE,...]``: None when absent, ZeroConfig (defaults + overrides)."""
-    if spec is None:
-        return None
-    items: dict[str, float] = {}
-    for part in filter(None, (p.strip() for p in spec.split(","))):
-        key, eq, value = part.partition("=")
-        try:
-            if not eq:
-                raise ValueError
-            items[key.strip()] = float(value)
-        except ValueError:
-            raise ConfigError(f"--zero: {part!r} is not KEY=NUMBER (keys: "
-                              f"{', '.join(ZeroConfig().to_dict())})") from None
-    return ZeroConfig.from_dict(items, where="--zero")
-
-
-def _zero_report(f: RunFeatures, z: ZeroSeries) -> dict[str, Any]:
-    return {"run": f.name, "status": z.status.name.lower(),
-            "done_s": None if math.isnan(z.done_s) else z.done_s,
-            "offset_dps": {a: float(v[-1]) if len(v) else 0.0 for a, v in z.offset_dps.items()},
-            "windows_rejected": z.windows_rejected}
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -347,10 +321,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="also write per-axis figures and report.md to DIR (default: none)")
     add_input_options(e)
     _fitrest.add_rest_options(e, use="score")
-    e.add_argument("--zero", nargs="?", const="", metavar="KEY=VALUE,...",
-                   help="apply the daemon's boot-time zero from each run's first row "
-                        "(docs/model.md \"Boot-time zero\"); optional overrides of its "
-                        "[zero] keys, e.g. window_s=60,settle_s=5 (default: no zero)")
+    add_zero_option(e)
     e.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("paper", help="reproduce Tables 1 and 2 on simulated chamber runs")

@@ -3,32 +3,19 @@
 Pure processing, no I/O of its own: frames go in through :meth:`Pipeline.process`,
 payloads leave through a :class:`Sink` (Zenoh publishers in the daemon, lists in
 tests). Per rate frame it only decodes, subtracts a cached bias, encodes and
-publishes; the estimator and the compensator (:mod:`._compensation`) run per *temperature* frame,
-where T and ΔT change. With an estimator ``update_period_s`` P > 0 (a calibration
-fitted on a sensor that refreshes every P s) a temperature frame is fused only when
+publishes; the estimator and the compensator (:mod:`._compensation`) run per
+*temperature* frame, where T and ΔT change. With an estimator ``update_period_s``
+P > 0 (a calibration fitted on a sensor that refreshes every P s) a temperature
+frame is fused only when
 it opens a new slot ``floor(t / P)``, the rule offline features use
 (:func:`gyrotherm.estimators.estimate_series`): a sensor that repeats its held
 reading in faster frames is fused once per refresh, as in the fit; the other frames
 step the compensator at the unchanged estimate.
 
-Accounting: every frame handed to :meth:`process` is either published (a rate
-frame as a ``rate`` message, a temperature frame as a ``state`` message) or
-dropped with a reason, so ``frames_received == frames_published +
-sum(drops.values())`` at all times. Reasons: the decoder's reject reasons;
-``publish_error`` (the sink raised: the message never left and the next one
-reuses its ``seq``); ``no_subscriber`` (the sink sent the message but no
-subscriber matched it — router or link down, or nobody subscribed — so nobody
-received it; its ``seq`` is spent, which is how a subscriber that comes back
-sees the gap); ``bad_timestamp`` (a time stamp outside its stream's window,
-see *Time stamps* below); the
-``reason`` of a :class:`gyrotherm.bus.TransportItem` (something read from the
-link that is not a frame, e.g. ``transport_malformed``);
-``internal_error`` (an unexpected exception while processing the frame: logged,
-and the stream goes on); ``congestion`` (a drop reason the sink returned: the
-message was handed to Zenoh, ``seq`` spent, but a full link to a frozen or too
-slow subscriber gave it up — see :mod:`gyrotherm.daemon._sink`).
-``frames_published`` counts what Zenoh accepted; messages a link loses after that
-(a link that dies with messages in flight) are seen only as ``seq`` gaps.
+Accounting: every frame handed to :meth:`process` is either published or dropped with
+a reason, so ``frames_received == frames_published + sum(drops.values())`` at all
+times (:mod:`gyrotherm.daemon._accounting`: the reasons, :class:`Sink`, :class:`Counters`).
+
 Before the first temperature frame rates are published uncorrected
 (bias 0) with ``TEMPERATURE_STALE | ESTIMATOR_WARMUP`` set.
 
@@ -51,8 +38,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import Counter
-from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 from gyrotherm._errors import ConfigError, PublishError
 from gyrotherm.bus import TransportItem
@@ -66,6 +52,13 @@ from gyrotherm.codecs._wire import (
 )
 from gyrotherm.compensation import Calibration
 from gyrotherm.compensation._zero import ZeroConfig, ZeroStatus
+from gyrotherm.daemon._accounting import (
+    INTERNAL_ERROR,
+    NO_SUBSCRIBER,
+    PUBLISH_ERROR,
+    Counters,
+    Sink,
+)
 from gyrotherm.daemon._compensation import POWER_ON_GAP_S, Compensation
 from gyrotherm.daemon._timewindow import (
     BAD_TIMESTAMP,
@@ -80,47 +73,13 @@ log = logging.getLogger("gyrotherm.daemon")
 
 #: Temperature readings fused before the estimate counts as converged.
 WARMUP_UPDATES = 20
-#: Drop reason: the sink raised :class:`PublishError`; the message never left.
-PUBLISH_ERROR = "publish_error"
-#: Drop reason: the message was sent (``seq`` spent) but no subscriber matched it.
-NO_SUBSCRIBER = "no_subscriber"
-#: Drop reason: an unexpected exception while processing the frame (logged).
-INTERNAL_ERROR = "internal_error"
 _ZERO = (0.0, 0.0, 0.0)
 #: Rate frames that cannot count towards the boot-time zero.
 _ZERO_UNUSABLE = int(StatusFlags.TEMPERATURE_STALE | StatusFlags.BIAS_INVALID
                      | StatusFlags.SENSOR_FAULT | StatusFlags.COUNTER_JUMP
                      | StatusFlags.NO_CALIBRATION)
-__all__ = ["BAD_TIMESTAMP", "MAX_ABS_TIME_S", "MAX_TIME_JUMP_S", "TIME_BASE_FRAMES",
-           "Counters", "Pipeline", "Sink"]
-
-
-class Sink(Protocol):
-    """Where payloads go; each call may raise :class:`PublishError` (the payload
-    never left: dropped as ``publish_error``, ``seq`` reused).
-
-    Otherwise the payload left (its ``seq`` is spent) and a call returns ``True``
-    or ``None`` when it was published, ``False`` when no subscriber matched it
-    (nobody received it: dropped as ``no_subscriber``), or a drop-reason string
-    when it was handed over but given up for that reason (``congestion``).
-    """
-
-    def put_rate(self, payload: bytes) -> bool | str | None: ...
-
-    def put_state(self, payload: bytes) -> bool | str | None: ...
-
-
-@dataclass(frozen=True)
-class Counters:
-    """Frame accounting snapshot. ``counter_jumps``: CAN counter jumps the decoder saw
-    in both mapped messages (rate and temperature), delivered or rejected."""
-
-    frames_received: int
-    frames_published: int
-    rate_published: int
-    state_published: int
-    drops: dict[str, int]
-    counter_jumps: int
+__all__ = ["BAD_TIMESTAMP", "INTERNAL_ERROR", "MAX_ABS_TIME_S", "MAX_TIME_JUMP_S",
+           "NO_SUBSCRIBER", "PUBLISH_ERROR", "TIME_BASE_FRAMES", "Counters", "Pipeline", "Sink"]
 
 
 class Pipeline(TimeWindow):

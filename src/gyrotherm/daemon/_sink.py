@@ -1,6 +1,6 @@
 """The daemon's Zenoh side: the pipeline sink backed by Zenoh publishers.
 
-:class:`_ZenohSink` implements :class:`~gyrotherm.daemon._pipeline.Sink`: it
+:class:`_ZenohSink` implements :class:`~gyrotherm.daemon._accounting.Sink`: it
 declares the rate, state (both ``CongestionControl.BLOCK``) and health
 publishers under :func:`gyrotherm._zenoh.keys` for the configured vehicle and
 sensor; ``put_rate``/``put_state`` raise :class:`PublishError` on a zenoh error
