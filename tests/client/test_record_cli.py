@@ -55,3 +55,52 @@ def test_sigterm_finishes_the_file(tmp_path: Path) -> None:
     assert {x.name for x in s.schemas.values()} == {
         "sensor_msgs/msg/Imu", "sensor_msgs/msg/Temperature", "gyrotherm.State",
         "gyrotherm.Health"}
+
+
+def test_idle_timeout_ends_a_stream_that_went_silent(tmp_path: Path,
+                                                     capsys) -> None:  # type: ignore[no-untyped-def]
+    """A publisher sends health messages until record has one, then stops talking while
+    its session stays up: record ends after --idle-timeout-s with exit 1, says why, and
+    the MCAP holds what came before."""
+    import threading
+    import time
+
+    from gyrotherm._zenoh import session_config
+    from gyrotherm.codecs._wire import HealthMessage, StatusFlags, encode_health
+    from streamkit import open_ephemeral
+
+    session, endpoint = open_ephemeral(session_config(listen=["tcp/127.0.0.1:0"]))
+    out, result, ready = tmp_path / "idle.mcap", {}, threading.Event()
+    argv = ["--vehicle", "v", "--sensor", "s", "--connect", endpoint, "--mcap", str(out),
+            "--json", "--calibration-timeout-s", "0.2", "--idle-timeout-s", "1.0"]
+    rec = threading.Thread(target=lambda: result.update(
+        code=record_main(argv, on_ready=lambda _port: ready.set())))
+    with session:
+        pub = session.declare_publisher("gyrotherm/v/s/health")
+        rec.start()
+        seq = 0
+        while not ready.is_set() and seq < 2000:  # until record has a message (≤ 20 s)
+            pub.put(encode_health(HealthMessage(seq, None, time.time(), 1.0, 0, 0, {},
+                                                StatusFlags.NONE, "", 0)))
+            seq += 1
+            ready.wait(0.01)
+        assert ready.is_set()
+        silent_from = time.monotonic()
+        rec.join(TIMEOUT_S)
+        assert not rec.is_alive(), "record did not give up on a silent stream"
+        waited = time.monotonic() - silent_from
+    assert result["code"] == 1 and waited >= 1.0
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out.strip().splitlines()[-1])
+    assert summary["stopped_by"] == "idle" and summary["messages"]["/gyrotherm/s/health"] >= 1
+    assert "no message for 1 s" in captured.err
+    with out.open("rb") as f:
+        assert sum(1 for _ in make_reader(f).iter_messages()) == sum(
+            summary["messages"].values())
+
+
+def test_durations_and_counts_must_be_positive(capsys) -> None:  # type: ignore[no-untyped-def]
+    for opt, value in (("--idle-timeout-s", "0"), ("--duration-s", "nan"), ("--count", "-1")):
+        assert record_main(["--vehicle", "v", "--sensor", "s", "--mcap", "x.mcap",
+                            opt, value]) == 2
+        assert f"{opt} " in capsys.readouterr().err

@@ -10,11 +10,14 @@ sensor_msgs/Temperature, gyrotherm's state and health as JSON). It first asks th
 daemon's calibration queryable for the calibration's residual noise (the
 angular-velocity covariance; all zeros, "unknown", when there is none or no reply
 within ``--calibration-timeout-s``). It stops after ``--duration-s``, after
-``--count`` rate messages, or on SIGINT/SIGTERM, finishes the file and prints a
-summary (``--json``: one JSON object on stdout).
+``--count`` rate messages, after ``--idle-timeout-s`` without any message (the
+daemon went silent: off by default, a recorder may outlive daemon restarts), or on
+SIGINT/SIGTERM, finishes the file and prints a summary (``--json``: one JSON object
+on stdout, ``stopped_by`` saying which).
 
 Exit status: 0 after a clean stop with at least one message recorded, 1 when nothing
-arrived, 2 on a usage or configuration error (a ``--ros-*`` option without ``--ros2``,
+arrived or the stream went silent for ``--idle-timeout-s``, 2 on a usage or
+configuration error (a ``--ros-*`` option without ``--ros2``,
 a sensor, namespace or node name that is no ROS 2 name).
 """
 
@@ -79,6 +82,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="stop after S seconds (default: until --count, SIGINT or SIGTERM)")
     p.add_argument("--count", type=int, default=None,
                    help="stop after N rate messages (default: no limit)")
+    p.add_argument("--idle-timeout-s", type=float, default=None,
+                   help="stop (exit 1) when no message at all arrived for S seconds "
+                   "(default: wait until another stop)")
     p.add_argument("--calibration-timeout-s", type=float, default=2.0,
                    help="wait this long for the daemon's calibration reply (2)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output on stderr")
@@ -111,7 +117,7 @@ def record_main(argv: Sequence[str] | None = None, *,
         print("gyrotherm record: error: give at least one output: --mcap FILE, "
               "--foxglove-port PORT and/or --ros2", file=sys.stderr)  # fmt: skip
         return 2
-    error = _ros_options(args)
+    error = _ros_options(args) or _positive(args)
     if error:
         print(f"gyrotherm record: error: {error}", file=sys.stderr)
         return 2
@@ -125,6 +131,18 @@ def record_main(argv: Sequence[str] | None = None, *,
             return 2
         with session:
             return _record(args, session, stop, on_ready)
+
+
+def _positive(args: argparse.Namespace) -> str | None:
+    """The error text for a duration, timeout or count that is not a positive number."""
+    import math
+
+    for dest, opt in (("duration_s", "--duration-s"), ("idle_timeout_s", "--idle-timeout-s"),
+                      ("calibration_timeout_s", "--calibration-timeout-s"), ("count", "--count")):
+        v = getattr(args, dest)
+        if v is not None and not (math.isfinite(v) and v > 0):
+            return f"{opt} {v!r}: must be a positive number"
+    return None
 
 
 def _ros_options(args: argparse.Namespace) -> str | None:
@@ -175,15 +193,25 @@ def _record(args: argparse.Namespace, session: Any, stop: threading.Event,
             sink.close()
         raise
     rates = threading.Semaphore(0)
+    last = [time.monotonic()]  # when the latest message (any stream) arrived
 
     def on_rate(msg: Any) -> None:
         fan.on_rate(msg)
+        last[0] = time.monotonic()
         rates.release()
+
+    def on_state(msg: Any) -> None:
+        fan.on_state(msg)
+        last[0] = time.monotonic()
+
+    def on_health(msg: Any) -> None:
+        fan.on_health(msg)
+        last[0] = time.monotonic()
 
     t0 = time.monotonic()
     try:
         with Subscriber(args.vehicle, args.sensor, session=session, on_rate=on_rate,
-                        on_state=fan.on_state, on_health=fan.on_health) as sub:  # fmt: skip
+                        on_state=on_state, on_health=on_health) as sub:  # fmt: skip
             if not args.quiet:
                 where = f" → {args.mcap}" if args.mcap else ""
                 live = ("" if server_port is None
@@ -197,13 +225,15 @@ def _record(args: argparse.Namespace, session: Any, stop: threading.Event,
                 while not (fan.first_message.wait(0.2) or stop.is_set()):
                     pass
                 on_ready(server_port)
-            _wait(stop, rates, args.count, args.duration_s)
+            stopped_by = _wait(stop, rates, args.count, args.duration_s,
+                               args.idle_timeout_s, last)
             stats = sub.stats()
     finally:
         fan.close()
     summary = {
         "mcap": args.mcap, "foxglove_port": server_port,
         "ros2": None if ros is None else ros.summary(), "duration_s": time.monotonic() - t0,
+        "stopped_by": stopped_by,
         "calibration_id": cal_id, "angular_velocity_variance_dps2": list(cov),
         "messages": dict(sorted(fan.counts.items())),
         "rate": {"received": stats.rate.received, "gaps": stats.rate.gaps,
@@ -217,21 +247,33 @@ def _record(args: argparse.Namespace, session: Any, stop: threading.Event,
         out.write_text(json.dumps(summary) + "\n", encoding="utf-8")
     elif not args.quiet:
         print(f"recorded {summary['messages']} in {summary['duration_s']:.1f} s", file=sys.stderr)
+    if stopped_by == "idle":
+        print(f"gyrotherm record: no message for {args.idle_timeout_s:g} s: the daemon stopped "
+              "publishing or the link is down (is `gyrotherm run` up?); the file is complete "
+              "up to there", file=sys.stderr)
+        return 1
     return 0 if fan.counts else 1
 
 
 def _wait(stop: threading.Event, rates: threading.Semaphore, count: int | None,
-          duration_s: float | None) -> None:  # fmt: skip
+          duration_s: float | None, idle_s: float | None = None,
+          last: list[float] | None = None) -> str:  # fmt: skip
+    """Block until a stop; which one: "signal", "duration", "count" or "idle" (no
+    message since ``last[0]`` (monotonic, s) for ``idle_s``)."""
     deadline = None if duration_s is None else time.monotonic() + duration_s
     seen = 0
     while not stop.is_set():
-        left = None if deadline is None else deadline - time.monotonic()
+        now = time.monotonic()
+        left = None if deadline is None else deadline - now
         if left is not None and left <= 0:
-            return
+            return "duration"
+        if idle_s is not None and last is not None and now - last[0] >= idle_s:
+            return "idle"
         step = 0.2 if left is None else min(0.2, left)
         if count is None:
             stop.wait(step)
         elif rates.acquire(timeout=step):
             seen += 1
             if seen >= count:
-                return
+                return "count"
+    return "signal"

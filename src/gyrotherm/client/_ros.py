@@ -154,7 +154,13 @@ def state_json(msg: StateMessage) -> dict[str, Any]:
         "flags": int(msg.flags), "flag_names": _flag_names(msg.flags),
         "effects": {a: {k: (_num(v) if isinstance(v, float) else v)
                         for k, v in e._asdict().items()} for a, e in msg.effects.items()},
+        "zero": None if msg.zero is None else {
+            "status": _ZERO_STATUS.get(msg.zero.status, str(msg.zero.status)),
+            "offset_dps": {a: _num(z) for a, z in zip("xyz", msg.zero.offset_dps, strict=True)}},
     }  # fmt: skip
+
+
+_ZERO_STATUS = {0: "off", 1: "pending", 2: "done", 3: "failed"}
 
 
 def health_json(msg: HealthMessage) -> dict[str, Any]:
@@ -180,6 +186,9 @@ STATE_SCHEMA: dict[str, Any] = {
         "receive_time_s": {"type": "number"}, "temperature_c": _NUM, "temperature_std_c": _NUM,
         "delta_t_c": _NUM, "delta_t_std_c": _NUM, "bias_dps": _XYZ, **_FLAGS,
         "effects": {"type": "object"},
+        "zero": {"type": ["object", "null"], "description": "boot-time zero: status (off, "
+                 "pending, done, failed) and offset_dps (x y z, °/s, part of bias_dps)",
+                 "properties": {"status": {"type": "string"}, "offset_dps": _XYZ}},
     },
 }  # fmt: skip
 HEALTH_SCHEMA: dict[str, Any] = {

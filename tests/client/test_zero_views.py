@@ -1,4 +1,5 @@
-"""``gyrotherm listen``'s live line: the boot-time zero from the state message."""
+"""The boot-time zero where a user sees it: ``gyrotherm listen``'s live line and the JSON
+state channel ``gyrotherm record`` writes."""
 
 from __future__ import annotations
 
@@ -30,3 +31,14 @@ def test_zero_pending_and_failed_and_absent() -> None:
     assert "zero pending" in line and "flags=ZERO_PENDING" in line
     assert "zero failed" in format_line(RATE, _state(ZeroState(3, (0.0, 0.0, 0.0))), STATS)
     assert "zero" not in format_line(RATE, _state(None), STATS)
+
+
+def test_recorded_state_json_carries_the_zero() -> None:
+    """``record``'s JSON state channel (MCAP, Foxglove) keeps the zero's status and z."""
+    from gyrotherm.client._ros import STATE_SCHEMA, state_json
+
+    doc = state_json(_state(ZeroState(2, (0.0125, -0.03125, NAN))))
+    assert doc["zero"] == {"status": "done", "offset_dps": {"x": 0.0125, "y": -0.03125,
+                                                           "z": None}}
+    assert state_json(_state(None))["zero"] is None
+    assert set(doc) <= set(STATE_SCHEMA["properties"])
