@@ -99,7 +99,8 @@ ZERO_WINDOWS_S = (10.0, 60.0, 300.0)
 """Boot-time zero windows tried (s at rest; the daemon's ``[zero] window_s``)."""
 ZERO_SETTLE_S = 30.0
 """``[zero] settle_s``: past the estimator's warm-up (20 readings of a sensor that
-refreshes every 1.28 s ≈ 26 s); the other ``[zero]`` keys keep their defaults."""
+refreshes every 1.28 s ≈ 25 s; also the default); the other ``[zero]`` keys keep
+their defaults."""
 
 
 @dataclass(frozen=True)

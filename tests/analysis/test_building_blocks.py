@@ -212,6 +212,24 @@ def test_synth_readout_is_quantised_and_held() -> None:
     assert isinstance(run, Run) and run.chamber_c is not None
 
 
+def test_refresh_period_of_a_nearly_flat_reading() -> None:
+    """A 1.28-s refresh whose quantised value (0.125 °C) changes only every few
+    refreshes: the row-grid period comes out at 1.2 s, and gaps of 8 refreshes
+    counted against 1.2 s would be miscounted; the refresh is still 1.28 s."""
+    from gyrotherm.codecs import Run
+
+    rng = np.random.default_rng(1)
+    t = np.arange(0.0, 3000.0, 0.1)
+    slot = np.floor(t / 1.28 + 1e-9).astype(int)
+    noise = rng.normal(0.0, 0.05, slot.max() + 1)
+    reading = np.round((25 + 0.3 * np.sin(slot * 1.28 / 400) + noise[slot]) / 0.125) * 0.125
+    run = Run(name="flat", time_s=t, temperature_c=reading,
+              rates_dps={"x": rng.normal(0.0, 0.01, len(t))})
+    ro = characterise(run, "x")
+    assert ro.period_s == pytest.approx(1.2, abs=1e-6)
+    assert ro.refresh_period_s == pytest.approx(1.28, abs=0.002)
+
+
 def test_synth_effect_is_in_the_true_bias() -> None:
     cfg = SynthConfig(duration_s=1200.0, effects={"drift": {"slope_dps_per_h": 0.36}})
     with_drift, _ = synth_run(cfg, seed=6, truth_seed=6)

@@ -40,7 +40,7 @@ def test_evaluate_zero_measures_what_the_calibration_misses(
     assert main(["-q", "evaluate", str(cal_path), paths[3], "--rest", "all", "--json",
                  str(plain)]) == 0
     assert main(["-q", "evaluate", str(cal_path), paths[3], "--rest", "all", "--json",
-                 str(zeroed), "--zero", "settle_s=30,window_s=20"]) == 0
+                 str(zeroed), "--zero-options", "settle_s=30,window_s=20"]) == 0
     p, z = json.loads(plain.read_text()), json.loads(zeroed.read_text())
     assert "zero" not in p
     (zr,) = z["zero"]["runs"]
@@ -54,13 +54,24 @@ def test_evaluate_zero_measures_what_the_calibration_misses(
     shift = p["scores"][0]["compensated"]["mean_dps"] - z["scores"][0]["compensated"]["mean_dps"]
     after = float(np.mean(t >= zr["done_s"] - held.time_s[0] - 1e-9))
     assert shift == pytest.approx(zr["offset_dps"]["x"] * after, rel=1e-6)
-    assert main(["-q", "evaluate", str(cal_path), paths[3], "--rest", "all", "--zero"]) == 0
+    # --report draws and scores the same bias (with the zero) as the printed scores
+    report, rep_json = tmp_path / "report", tmp_path / "rep.json"
+    assert main(["-q", "evaluate", str(cal_path), paths[3], "--rest", "all", "--json",
+                 str(rep_json), "--zero-options", "settle_s=30,window_s=20", "--report",
+                 str(report)]) == 0
+    md = (report / "report.md").read_text(encoding="utf-8")
+    rms = json.loads(rep_json.read_text())["scores"][0]["compensated"]["rms_dps"]
+    assert "includes the boot-time zero" in md and f"| {rms:.4g} |" in md
+    capsys.readouterr()
+    # --zero before the runs: a flag, so it takes no run for its settings
+    assert main(["-q", "evaluate", str(cal_path), "--zero", paths[3], "--rest", "all"]) == 0
     assert "boot-time zero, synth-101-3: done at" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize(("spec", "message"), [
-    ("window_s=abc", "--zero: 'window_s=abc' is not KEY=NUMBER (keys: window_s, settle_s"),
-    ("window=5", "--zero: unknown key(s) ['window']"),
+    ("window_s=abc", "--zero-options: 'window_s=abc' is not KEY=NUMBER (keys: window_s, "
+                     "settle_s"),
+    ("window=5", "--zero-options: unknown key(s) ['window']"),
     ("window_s=0.1", "zero.window_s = 0.1 is outside [1, 3600]"),
 ])
 def test_bad_zero_spec_is_named(spec: str, message: str, tmp_path: Path,
@@ -69,5 +80,5 @@ def test_bad_zero_spec_is_named(spec: str, message: str, tmp_path: Path,
     paths = [str(write_run(r, tmp_path / f"{r.name}.csv")) for r in runs]
     cal = tmp_path / "cal.json"
     assert main(["-q", "fit", paths[0], "--out", str(cal), "--no-validation", *READOUT]) == 0
-    assert main(["-q", "evaluate", str(cal), paths[1], "--zero", spec]) == 2
+    assert main(["-q", "evaluate", str(cal), paths[1], "--zero-options", spec]) == 2
     assert message in capsys.readouterr().err

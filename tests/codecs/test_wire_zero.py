@@ -9,7 +9,8 @@ import msgpack
 import pytest
 
 from gyrotherm import DecodeError
-from gyrotherm.codecs._wire import StateMessage, StatusFlags, ZeroState, encode_state
+from gyrotherm.codecs import _wire_decode
+from gyrotherm.codecs._wire import MessageKind, StateMessage, StatusFlags, ZeroState, encode_state
 from gyrotherm.codecs._wire_decode import decode_state
 
 
@@ -33,9 +34,21 @@ def test_zero_bytes_by_hand_round_trip() -> None:
     assert decode_state(BYTES) == MSG
 
 
-def test_older_decoders_see_13_fields_and_empty_effects() -> None:
+def test_a_decoder_from_before_the_zero_ignores_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The decoder as it was before ``zero`` (appended fields: ``effects`` only) decodes
+    today's 15-element message: the empty effects map, the trailing zero ignored."""
     a = msgpack.unpackb(BYTES)
     assert len(a) == 15 and a[13] == {} and a[14][0] == 2
+    appended = dict(_wire_decode._APPENDED)
+    appended[MessageKind.STATE] = [f for f in appended[MessageKind.STATE] if f[0] != "zero"]
+    monkeypatch.setattr(_wire_decode, "_APPENDED", appended)
+    older = decode_state(BYTES)
+    assert older.zero is None and older.effects == {}
+    assert older.bias_dps == MSG.bias_dps and older.flags == MSG.flags
+
+
+def test_todays_decoder_reads_a_publisher_without_the_zero() -> None:
+    a = msgpack.unpackb(BYTES)
     older = decode_state(msgpack.packb(a[:14]))  # a publisher without the zero
     assert older.zero is None and older.effects == {}
 

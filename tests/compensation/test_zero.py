@@ -79,19 +79,14 @@ def test_non_finite_sample_discards_the_open_window() -> None:
     assert zs.windows_rejected == 0
 
 
-def test_push_loop_equals_zero_series_bit_for_bit() -> None:
-    rng = np.random.default_rng(3)
-    t = np.cumsum(rng.uniform(0.05, 0.15, 300))
-    x, y, z = (rng.normal(m, 0.02, 300) for m in (0.01, -0.02, 0.03))
-    zs = zero_series(CFG, t, {"x": x, "y": y, "z": z})
+def test_unusable_samples_do_not_stop_the_deadline() -> None:
+    """Every sample unusable (on the vehicle: stale, bias-invalid, sensor fault): the
+    window never opens, and the zero fails at the deadline counted from the first one."""
     bz = BootZero(CFG)
-    bz.start(float(t[0]))
-    for i in range(300):
-        if bz.push(float(t[i]), float(x[i]), float(y[i]), float(z[i])):
-            break
-    assert bz.status == zs.status == ZeroStatus.DONE
-    assert bz.offset_dps == (zs.offset_dps["x"][-1], zs.offset_dps["y"][-1],
-                             zs.offset_dps["z"][-1])
+    bz.start()  # NaN: the start is the first sample, usable or not
+    changed = [bz.interrupt(100.0 + 0.5 * i) for i in range(80)]
+    assert bz.start_s == 100.0 and bz.status == ZeroStatus.FAILED
+    assert changed.index(True) == 61  # t = 130.5 s: the first beyond 30 s
 
 
 def test_restart_and_restore() -> None:
@@ -109,7 +104,7 @@ def test_restart_and_restore() -> None:
 @pytest.mark.parametrize(("key", "value", "match"), [
     ("window_s", 0.5, r"zero.window_s = 0.5 is outside \[1, 3600\]"),
     ("max_std_dps", math.inf, r"zero.max_std_dps = inf is outside"),
-    ("deadline_s", 5.0, r"deadline_s = 5 s leaves no room for settle_s \+ window_s = 20 s"),
+    ("deadline_s", 5.0, r"deadline_s = 5 s leaves no room for settle_s \+ window_s = 40 s"),
     ("settle_s", "10", r"zero.settle_s: expected a number, got '10'"),
 ])
 def test_config_errors_name_the_key_and_limit(key: str, value: object, match: str) -> None:

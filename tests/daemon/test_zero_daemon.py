@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from gyrotherm import ConfigError
-from gyrotherm.codecs import FrameDecoder, FrameEncoder, Run
+from gyrotherm.codecs import FrameDecoder, FrameEncoder, RateSample, Run, TemperatureSample
 from gyrotherm.codecs._wire import StatusFlags
 from gyrotherm.codecs._wire_decode import decode_rate, decode_state
 from gyrotherm.compensation import Calibration, ZeroConfig, ZeroStatus, features, removed_bias
@@ -202,3 +202,75 @@ def test_zero_table_in_the_daemon_config() -> None:
     assert parse_config({**base, "zero": {"window_s": 60}}).zero == ZeroConfig(window_s=60.0)
     with pytest.raises(ConfigError, match=r"gyro.toml: \[zero\]: zero.max_step_dps = -1"):
         parse_config({**base, "zero": {"max_step_dps": -1}}, source="gyro.toml")
+
+
+def test_a_sensor_fault_throughout_still_ends_in_zero_failed(
+        short_runs: list[Run], stream_calibration: Calibration) -> None:
+    """Every temperature frame reports a fault (SENSOR_FAULT on every rate frame): no
+    window can open, and the zero fails at its deadline instead of pending forever."""
+    run = short_runs[0].slice(0, 200)
+    enc = FrameEncoder()
+    frames = []
+    for i, t in enumerate(run.time_s.tolist()):
+        frames.append(enc.encode_temperature(TemperatureSample(t, float(run.temperature_c[i]),
+                                                               status=1)))
+        frames.append(enc.encode_rate(RateSample(t, *(float(run.rates_dps[a][i])
+                                                      for a in "xyz"))))
+    cfg = ZeroConfig(window_s=30.0, settle_s=20.0, deadline_s=120.0)
+    _, sink = _stream(stream_calibration, frames, cfg)
+    msgs = [decode_rate(p) for p in sink.rates]
+    t = run.time_s - run.time_s[0]
+    failed = np.array([bool(m.flags & StatusFlags.ZERO_FAILED) for m in msgs])
+    assert all(m.flags & StatusFlags.SENSOR_FAULT for m in msgs[1:])
+    assert not failed[t <= 120.0].any() and failed[t > 120.0].all()
+
+
+def test_a_temperature_dropout_while_rates_flow_is_not_a_power_on(
+        short_runs: list[Run], stream_calibration: Calibration) -> None:
+    """40 s without temperature frames (> power_on_gap_s 30 s) while the rate frames
+    keep coming: the zero stays done and the power-on time is unchanged."""
+    run = short_runs[0].slice(0, 300)
+    frames = [m for m in run_frames(run, FrameEncoder())
+              if not (m.arbitration_id == FrameEncoder().layout.temperature.frame_id
+                      and 150.0 <= m.timestamp - run.time_s[0] < 190.0)]
+    pipe, sink = _stream(stream_calibration, frames)
+    assert pipe.compensation.power_on_s == run.time_s[0]
+    msgs = [decode_rate(p) for p in sink.rates]
+    assert not any(m.flags & PENDING for m in msgs[60:])
+    zero = pipe.compensation.zero
+    assert zero is not None and zero.status == ZeroStatus.DONE
+    assert zero.done_s == run.time_s[50]  # the one zero, taken at 50 s
+
+
+def test_held_frames_slower_than_stale_after_are_not_stale(
+        short_runs: list[Run], stream_calibration: Calibration) -> None:
+    """A calibration whose sensor refreshes every 8 s (update_period_s) with
+    stale_after_s = 5 s, frames every second repeating the held reading: frames keep
+    arriving, so nothing is flagged stale after the start, and the zero is taken."""
+    run = short_runs[0].slice(0, 200)
+    est = replace(stream_calibration.estimator, update_period_s=8.0, stale_after_s=5.0)
+    cal = replace(stream_calibration, estimator=est)
+    _, sink = _stream(cal, list(run_frames(run, FrameEncoder())))
+    msgs = [decode_rate(p) for p in sink.rates]
+    assert not any(m.flags & StatusFlags.TEMPERATURE_STALE for m in msgs[1:])
+    assert decode_state(sink.states[-1]).zero.status == ZeroStatus.DONE  # type: ignore[union-attr]
+
+
+def test_saved_state_without_or_with_a_broken_zero_still_restores_the_effects(
+        tmp_path: Path) -> None:
+    from gyrotherm.daemon._effects_store import load
+
+    base = {"schema": "gyrotherm.effects-state", "version": 1, "vehicle": "v", "sensor": "s",
+            "calibration_id": "c", "power_on_s": 10.0, "time_s": 20.0,
+            "compensator": {"x": {}}}
+    path = tmp_path / "state.json"
+    for zero in (None, {"status": "done", "offset_dps": [1, 2]},
+                 {"status": "maybe", "offset_dps": [0, 0, 0]}):
+        path.write_text(json.dumps(base if zero is None else {**base, "zero": zero}))
+        saved = load(path)
+        assert saved is not None and saved.snapshot.power_on_s == 10.0
+        assert saved.snapshot.state == {"x": {}} and saved.snapshot.zero is None
+    good = {"status": "done", "offset_dps": [0.5, -0.25, 0.0], "done_s": 15.0}
+    path.write_text(json.dumps({**base, "zero": good}))
+    saved = load(path)
+    assert saved is not None and saved.snapshot.zero == good

@@ -104,12 +104,13 @@ def characterise(run: Run, axis: str) -> Readout:
         period = max(dt, float(np.percentile(gaps, 10)))
         period = dt * round(period / dt) if period > 1.5 * dt else dt
     refresh = period
-    if period > 1.5 * dt:  # Σ gaps / Σ refreshes they span, over gaps < 10 periods
-        gaps = np.diff(t[change])
-        gaps = gaps[gaps < 10 * period]
-        k = np.round(gaps / period)
-        if np.sum(k) > 0:
-            refresh = float(np.sum(gaps) / np.sum(k))
+    if period > 1.5 * dt:  # Σ gaps / Σ refreshes they span: first over gaps of ≤ 3
+        gaps = np.diff(t[change])  # refreshes (robust to the grid's rounding), then ≤ 10
+        for limit in (3.5, 10.0):
+            g = gaps[gaps < limit * refresh]
+            k = np.round(g / refresh)
+            if np.sum(k) > 0:
+                refresh = float(np.sum(g) / np.sum(k))
     fresh_idx = np.r_[0, change] if period > 1.5 * dt else np.arange(len(t))
     lsb = _grid_step(temp[: min(len(temp), 200_000)], floor=1e-7)
     fresh = temp[fresh_idx]

@@ -26,6 +26,7 @@ from gyrotherm.compensation import (
     MODELS,
     Calibration,
     RunFeatures,
+    ZeroConfig,
     default_scaling,
     features,
     fit,
@@ -156,13 +157,14 @@ def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunF
 
 
 def _report(args: argparse.Namespace, cal: Calibration, feats: list[RunFeatures], *,
-            title: str, calibration_path: str, report_dir: str | None = None) -> None:
+            title: str, calibration_path: str, report_dir: str | None = None,
+            zero: ZeroConfig | None = None) -> None:
     """``--report DIR``: per-axis figures and report.md (matplotlib, loaded here only)."""
     from gyrotherm.cli._plots import write_fit_report
 
     md = write_fit_report(cal, feats,
                           conv.output_dir(report_dir or args.report, option="--report"),
-                          title=title, calibration_path=calibration_path)
+                          title=title, calibration_path=calibration_path, zero=zero)
     if not args.quiet:
         print(f"wrote {md}", file=sys.stderr)
 
@@ -231,7 +233,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     feats = _fitrest.mask_motion(_features_of(runs, cal.estimator, quiet=args.quiet), reports)
     with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
         _fitrest.print_rest_report(reports, use="the scores")
-    zero = zero_option(args.zero)
+    zero = zero_option(args)
     removed = [removed_bias(cal, f, zero=zero) for f in feats]
     scores = [s for f, rb in zip(feats, removed, strict=True) for s in score(cal, f, removed=rb)]
     zeros = [zero_report(f, rb.zero) for f, rb in zip(feats, removed, strict=True)
@@ -259,7 +261,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         print(score_table(scores))
     if args.report:
         _report(args, cal, feats, title=f"evaluate: {args.calibration}",
-                calibration_path=str(args.calibration))
+                calibration_path=str(args.calibration), zero=zero)
     return 0
 
 

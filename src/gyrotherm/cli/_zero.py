@@ -1,4 +1,5 @@
-"""``evaluate --zero``: the daemon's boot-time zero offline (docs/model.md §10)."""
+"""``evaluate --zero [--zero-options ...]``: the daemon's boot-time zero offline
+(docs/model.md §10)."""
 
 from __future__ import annotations
 
@@ -11,18 +12,24 @@ from gyrotherm.compensation import RunFeatures, ZeroConfig, ZeroSeries
 
 
 def add_zero_option(parser: argparse.ArgumentParser) -> None:
-    """``--zero [KEY=VALUE,...]`` (``const`` "": the defaults)."""
+    """``--zero`` and ``--zero-options KEY=VALUE,...`` (which implies ``--zero``). Two
+    options, not one with an optional value: ``evaluate CAL --zero RUN`` must not take
+    RUN for the settings."""
     parser.add_argument(
-        "--zero", nargs="?", const="", metavar="KEY=VALUE,...",
+        "--zero", action="store_true",
         help="apply the daemon's boot-time zero from each run's first row (docs/model.md "
-             "\"Boot-time zero\"); optional overrides of its [zero] keys, e.g. "
-             "window_s=60,settle_s=5 (default: no zero)")
+             "\"Boot-time zero\") with the [zero] defaults (default: no zero)")
+    parser.add_argument(
+        "--zero-options", metavar="KEY=VALUE,...",
+        help="the zero with these [zero] keys changed, e.g. window_s=60,settle_s=30 "
+             "(implies --zero; default: the daemon's defaults)")
 
 
-def zero_option(spec: str | None) -> ZeroConfig | None:
-    """``--zero [KEY=VALUE,...]``: None when absent, ZeroConfig (defaults + overrides)."""
+def zero_option(args: argparse.Namespace) -> ZeroConfig | None:
+    """None without ``--zero``/``--zero-options``; else ZeroConfig (defaults + overrides)."""
+    spec: str | None = args.zero_options
     if spec is None:
-        return None
+        return ZeroConfig() if args.zero else None
     items: dict[str, float] = {}
     for part in filter(None, (p.strip() for p in spec.split(","))):
         key, eq, value = part.partition("=")
@@ -31,9 +38,9 @@ def zero_option(spec: str | None) -> ZeroConfig | None:
                 raise ValueError
             items[key.strip()] = float(value)
         except ValueError:
-            raise ConfigError(f"--zero: {part!r} is not KEY=NUMBER (keys: "
+            raise ConfigError(f"--zero-options: {part!r} is not KEY=NUMBER (keys: "
                               f"{', '.join(ZeroConfig().to_dict())})") from None
-    return ZeroConfig.from_dict(items, where="--zero")
+    return ZeroConfig.from_dict(items, where="--zero-options")
 
 
 def zero_report(f: RunFeatures, z: ZeroSeries) -> dict[str, Any]:

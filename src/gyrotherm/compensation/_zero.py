@@ -20,10 +20,11 @@ axis, the residual ω − b has a standard deviation ≤ ``max_std_dps``, the me
 of the window's two halves (split at ``window_s``/2) differ by ≤
 ``max_step_dps``, and |z| ≤ ``max_offset_dps``; each half needs two samples.
 Otherwise a new window opens at the closing sample. An unusable sample (a
-non-finite residual; on the vehicle also a frame flagged stale, bias-invalid,
-sensor-fault or counter-jump) discards the open window; the next usable sample
-opens a new one. No accepted window within ``deadline_s`` of the start: the
-zero **failed**, z = 0 until the next start.
+non-finite residual; on the vehicle also a frame flagged stale, bias-invalid or
+sensor-fault) discards the open window; the next usable sample opens a new one.
+(A frame after a counter jump is used: a lost frame does not bias a mean at rest.)
+No accepted window within ``deadline_s`` of the start (the first sample, usable
+or not): the zero **failed**, z = 0 until the next start.
 
 Limits: the gyro alone cannot tell a constant-rate rotation from an offset.
 A steady turn slower than ``max_offset_dps`` during the window is taken for an
@@ -80,8 +81,9 @@ class ZeroConfig:
 
     window_s: float = 10.0
     """Length of the rest window averaged, s."""
-    settle_s: float = 10.0
-    """Wait after the start before the first window opens (the estimator's warm-up), s."""
+    settle_s: float = 30.0
+    """Wait after the start before the first window opens, s: past the estimator's
+    warm-up (20 readings: ≈ 25 s for a sensor that refreshes every 1.28 s)."""
     max_std_dps: float = 0.5
     """Rest check: largest standard deviation of ω − b in the window, per axis, °/s."""
     max_step_dps: float = 0.05
@@ -150,9 +152,19 @@ class BootZero:
             self.status, self.offset_dps, self.done_s = status, offset_dps, done_s
             self._open_s = math.nan
 
-    def interrupt(self) -> None:
-        """An unusable sample: the open window is discarded."""
+    def interrupt(self, time_s: float) -> bool:
+        """An unusable sample at ``time_s`` (s): the open window is discarded. The
+        deadline still runs (it counts from the first sample, usable or not); True when
+        the zero failed here."""
+        if self.status != ZeroStatus.PENDING:
+            return False
         self._open_s = math.nan
+        if math.isnan(self.start_s):
+            self.start_s = time_s
+        if time_s - self.start_s > self.config.deadline_s:
+            self.status = ZeroStatus.FAILED
+            return True
+        return False
 
     def push(self, time_s: float, x: float, y: float, z: float) -> bool:
         """One sample's residual ω − b (°/s) at ``time_s`` (s); True when the status

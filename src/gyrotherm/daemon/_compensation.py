@@ -9,8 +9,9 @@ and the rate hot path only reads the cached bias tuple.
 
 **Power-on** (t_on = t − ``power_on_s``): the first accepted temperature frame
 after the daemon starts, after a sensor silence longer than ``power_on_gap_s``
-(sensor time between two accepted temperature frames) or after a time-base
-change of the temperature stream is the gyro's power-on: t_on = 0 there and the
+(sensor time between two accepted temperature frames, the rate frames silent
+too: a temperature dropout while rates keep coming is not a power-on) or after a
+time-base change of the temperature stream is the gyro's power-on: t_on = 0 there and the
 effects' state starts again (as offline evaluation starts it at a run's first
 row). Exception: a daemon restarted while the gyro kept running restores the
 state it saved (:meth:`Compensation.restore_at_power_on`, persistence in

@@ -30,7 +30,7 @@ Example (every key; relative paths are relative to the config file)::
 
     [zero]                            # optional: boot-time zero at rest (off without
     window_s = 10.0                   # the table); every key optional, defaults shown:
-    settle_s = 10.0                   # wait after power-on before the first window, s
+    settle_s = 30.0                   # wait after power-on before the first window, s
     max_std_dps = 0.5                 # rest check: std of rate − bias per axis, °/s
     max_step_dps = 0.05               # rest check: half-window means differ by ≤, °/s
     max_offset_dps = 1.0              # largest offset taken for a switch-on offset, °/s

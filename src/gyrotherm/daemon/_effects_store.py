@@ -113,7 +113,17 @@ def load(path: Path) -> SavedEffects | None:
                         _field(doc, "calibration_id", str, "a string", src),
                         EffectsSnapshot(times["power_on_s"], times["time_s"],
                                         _field(doc, "compensator", dict, "an object", src),
-                                        _zero(doc, src)))
+                                        _zero_or_none(doc, src)))
+
+
+def _zero_or_none(doc: dict[str, Any], src: str) -> dict[str, Any] | None:
+    """The saved zero; a malformed one is logged and dropped alone (the effects state
+    is still restored; the zero is then measured again)."""
+    try:
+        return _zero(doc, src)
+    except CalibrationError as exc:
+        log.warning("saved boot-time zero ignored (measured again): %s", exc)
+        return None
 
 
 def _zero(doc: dict[str, Any], src: str) -> dict[str, Any] | None:

@@ -21,7 +21,7 @@ Before the first temperature frame rates are published uncorrected
 
 Boot-time zero (``zero``, optional; :mod:`gyrotherm.compensation._zero`): while
 it is pending each rate frame's residual ω − b is pushed to it (frames flagged
-stale, bias-invalid, sensor-fault or counter-jump discard the open window);
+stale, bias-invalid or sensor-fault discard the open window; its deadline runs on);
 ``ZERO_PENDING`` is set until a window is accepted, from then on the bias
 removed is b + z, or ``ZERO_FAILED`` after its deadline. Once decided, the
 rate path is the same as without a zero.
@@ -38,6 +38,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import Counter
+from dataclasses import replace
 from typing import Any
 
 from gyrotherm._errors import ConfigError, PublishError
@@ -76,8 +77,7 @@ WARMUP_UPDATES = 20
 _ZERO = (0.0, 0.0, 0.0)
 #: Rate frames that cannot count towards the boot-time zero.
 _ZERO_UNUSABLE = int(StatusFlags.TEMPERATURE_STALE | StatusFlags.BIAS_INVALID
-                     | StatusFlags.SENSOR_FAULT | StatusFlags.COUNTER_JUMP
-                     | StatusFlags.NO_CALIBRATION)
+                     | StatusFlags.SENSOR_FAULT | StatusFlags.NO_CALIBRATION)
 __all__ = ["BAD_TIMESTAMP", "INTERNAL_ERROR", "MAX_ABS_TIME_S", "MAX_TIME_JUMP_S",
            "NO_SUBSCRIBER", "PUBLISH_ERROR", "TIME_BASE_FRAMES", "Counters", "Pipeline", "Sink"]
 
@@ -212,9 +212,8 @@ class Pipeline(TimeWindow):
         if self._zeroing:
             zero = self._compensation.zero
             assert zero is not None
-            if flags & _ZERO_UNUSABLE:
-                zero.interrupt()
-            elif zero.push(t, x - b0, y - b1, z - b2):  # decided: the bias changes
+            if (zero.interrupt(t) if int(flags) & _ZERO_UNUSABLE
+                    else zero.push(t, x - b0, y - b1, z - b2)):  # decided: the bias changes
                 self._refresh_bias(step=False)
                 flags = self._flags | (flags & (StatusFlags.TEMPERATURE_STALE
                                                 | StatusFlags.COUNTER_JUMP))
@@ -251,8 +250,13 @@ class Pipeline(TimeWindow):
                             "(%d consecutive frames); estimator restarted", last, t, n)
                 self._estimator.reset()
             self._compensation.power_on(t, first=first)  # a new time base: power-on
-        elif t - last > self._power_on_gap_s:  # a silence longer than the gap: power-on
-            self._compensation.power_on(t, first=False)
+        elif t - last > self._power_on_gap_s:  # a silence longer than the gap: power-on,
+            rate_t = self.last_sensor_time_s  # unless the rate frames kept coming
+            if rate_t is not None and t - rate_t <= self._power_on_gap_s:
+                log.warning("temperature frames silent for %.1f s while rate frames kept "
+                            "coming: not a power-on (effects and zero continue)", t - last)
+            else:
+                self._compensation.power_on(t, first=False)
         self._temperature_run_n = 0
         self._temperature_rx_s = receive_time_s
         self._temperature_dropping = False
@@ -262,7 +266,9 @@ class Pipeline(TimeWindow):
             self.last_estimate = self._estimator.update(t, s.temperature_c)
             self._temperature_slot = slot
         else:  # the sensor's held reading, already fused in this slot (as the fit fed it)
-            self.last_estimate = self._estimator.estimate(t)
+            est = self._estimator.estimate(t)
+            # a frame arrived: not stale, also when P > stale_after_s
+            self.last_estimate = replace(est, stale=False) if est.stale else est
         self._last_temperature_s = t
         self._sensor_status = s.status or 0
         self._refresh_bias(step=True)

@@ -70,9 +70,10 @@ class EstimatorConfig:
     process_noise_c2_per_s3: float = 1e-7
     """Spectral density q of the white jerk driving dT/dt, °C²/s³."""
     update_period_s: float = 0.0
-    """Offline only: the sensor's refresh period, s: from a run file, one row per
-    slot floor(time_s / period) is fed to the filter (0 = every row). Set it
-    when rows repeat a held reading."""
+    """The sensor's refresh period, s: one reading per slot floor(time_s / period) is
+    fed to the filter (0 = every reading), offline from a run file's rows and in the
+    daemon from its temperature frames alike. Set it when rows or frames repeat a
+    held reading."""
     gate_sigma: float = 6.0
     """Innovation gate, in standard deviations of the innovation."""
     max_consecutive_rejections: int = 5
