@@ -322,3 +322,20 @@ def run_daemon_in_process(cfg: dict[str, object], tmp_path: Path, frames: list,
         thread.join(_DAEMON_TIMEOUT_S)
     assert not thread.is_alive() and "s" in result
     return rates, states, result["s"]
+
+
+def restart_setup(tmp_path: Path, cal_path: Path, run: Run, prefix: str,
+                  **extra: object) -> tuple[list[can.Message], str, int, dict[str, object]]:
+    """For a daemon stopped and started again on one run: the run's frames, a fresh
+    virtual channel and Zenoh port, and a config with ``state_dir`` (created) and
+    ``calibration`` (``extra``: more top-level keys, e.g. ``zero``)."""
+    import uuid
+
+    channel, port = f"{prefix}-{uuid.uuid4().hex[:8]}", free_port()
+    cfg: dict[str, object] = {
+        "vehicle": "car", "sensor": "imu0", "calibration": str(cal_path),
+        "state_dir": "state", "health_period_s": 0.2, **extra,
+        "can": {"interface": "virtual", "channel": channel, "recv_timeout_s": 0.05},
+        "zenoh": {"listen": [f"tcp/127.0.0.1:{port}"]}}
+    (tmp_path / "state").mkdir()
+    return list(run_frames(run, FrameEncoder())), channel, port, cfg

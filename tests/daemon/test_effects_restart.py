@@ -6,14 +6,13 @@ offline compensator over their estimator output as one series from power-on."""
 from __future__ import annotations
 
 import json
-import uuid
 from pathlib import Path
 
 import numpy as np
 
-from gyrotherm.codecs import FrameEncoder, Run
+from gyrotherm.codecs import Run
 from gyrotherm.compensation import Calibration
-from streamkit import free_port, make_v2, offline_bias, run_daemon_in_process, run_frames
+from streamkit import make_v2, offline_bias, restart_setup, run_daemon_in_process
 
 
 def test_restart_restores_the_effects_state(
@@ -22,14 +21,8 @@ def test_restart_restores_the_effects_state(
     v2 = make_v2(stream_calibration)
     cal_path = v2.save(tmp_path / "v2.json")
     run = short_runs[2].slice(0, 1200)
-    frames = list(run_frames(run, FrameEncoder()))
+    frames, channel, port, cfg = restart_setup(tmp_path, cal_path, run, "eff")
     cut = 700
-    channel, port = f"eff-{uuid.uuid4().hex[:8]}", free_port()
-    cfg = {"vehicle": "car", "sensor": "imu0", "calibration": str(cal_path),
-           "state_dir": "state", "health_period_s": 0.2,
-           "can": {"interface": "virtual", "channel": channel, "recv_timeout_s": 0.05},
-           "zenoh": {"listen": [f"tcp/127.0.0.1:{port}"]}}
-    (tmp_path / "state").mkdir()
     r1, s1, sum1 = run_daemon_in_process(cfg, tmp_path, frames[:2 * cut], channel, port, cut)
     saved = json.loads((tmp_path / "state" / "car.imu0.effects-state.json").read_text())
     assert saved["time_s"] == run.time_s[cut - 1] and saved["power_on_s"] == run.time_s[0]

@@ -6,7 +6,6 @@ message, a new power-on, another calibration, and a restart that keeps it."""
 from __future__ import annotations
 
 import json
-import uuid
 from dataclasses import replace
 from pathlib import Path
 
@@ -21,9 +20,9 @@ from gyrotherm.compensation import Calibration, ZeroConfig, ZeroStatus, features
 from gyrotherm.daemon import Pipeline, parse_config
 from streamkit import (
     RecordingSink,
-    free_port,
     make_v2,
     offline_bias,
+    restart_setup,
     run_daemon_in_process,
     run_frames,
 )
@@ -163,15 +162,9 @@ def test_restart_keeps_a_zero_that_was_done(
     of both daemons equal offline evaluation of the whole run from power-on."""
     cal_path = stream_calibration.save(tmp_path / "cal.json")
     run = short_runs[0].slice(0, 300)
-    frames = list(run_frames(run, FrameEncoder()))
+    frames, channel, port, cfg = restart_setup(tmp_path, cal_path, run, "zero",
+                                               zero={"window_s": 30.0, "settle_s": 20.0})
     cut = 120
-    channel, port = f"zero-{uuid.uuid4().hex[:8]}", free_port()
-    cfg = {"vehicle": "car", "sensor": "imu0", "calibration": str(cal_path),
-           "state_dir": "state", "health_period_s": 0.2,
-           "zero": {"window_s": 30.0, "settle_s": 20.0},
-           "can": {"interface": "virtual", "channel": channel, "recv_timeout_s": 0.05},
-           "zenoh": {"listen": [f"tcp/127.0.0.1:{port}"]}}
-    (tmp_path / "state").mkdir()
     r1, s1, _ = run_daemon_in_process(cfg, tmp_path, frames[:2 * cut], channel, port, cut)
     saved = json.loads((tmp_path / "state" / "car.imu0.effects-state.json").read_text())
     assert saved["zero"]["status"] == "done"
