@@ -6,6 +6,7 @@ message, a new power-on, another calibration, and a restart that keeps it."""
 from __future__ import annotations
 
 import json
+import logging
 from dataclasses import replace
 from pathlib import Path
 
@@ -54,7 +55,9 @@ def run_rates(run: Run) -> np.ndarray:
 
 @pytest.mark.parametrize("version", [1, 2])
 def test_zero_matches_offline_and_the_hand_computed_window(
-        short_runs: list[Run], stream_calibration: Calibration, version: int) -> None:
+        short_runs: list[Run], stream_calibration: Calibration, version: int,
+        caplog: pytest.LogCaptureFixture) -> None:
+    caplog.set_level(logging.INFO, logger="gyrotherm.daemon")
     cal = stream_calibration if version == 1 else make_v2(stream_calibration)
     run = short_runs[0].slice(0, 600)
     pipe, sink = _stream(cal, list(run_frames(run, FrameEncoder())))
@@ -83,6 +86,9 @@ def test_zero_matches_offline_and_the_hand_computed_window(
     np.testing.assert_allclose(last.offset_dps, z, atol=1e-12)
     assert states[0].zero is not None and states[0].zero.status == ZeroStatus.PENDING
     assert abs(z[0]) > 1e-4  # a real offset was removed, not a zero of zeros
+    said = [r.getMessage() for r in caplog.records if "boot-time zero" in r.getMessage()]
+    assert len(said) == 1 and said[0].startswith("boot-time zero done at t = ")
+    assert f"x {z[0]:+.5f}" in said[0]
 
 
 def want_model_bias(cal: Calibration, run: Run) -> np.ndarray:
@@ -138,7 +144,8 @@ def test_another_calibration_restarts_the_zero_the_same_keeps_it(
 
 
 def test_no_rest_window_before_the_deadline_fails(
-        short_runs: list[Run], stream_calibration: Calibration) -> None:
+        short_runs: list[Run], stream_calibration: Calibration,
+        caplog: pytest.LogCaptureFixture) -> None:
     run = short_runs[0].slice(0, 200)
     rng = np.random.default_rng(5)
     shaken = replace(run, rates_dps={a: v + rng.normal(0.0, 2.0, len(v))
@@ -150,6 +157,7 @@ def test_no_rest_window_before_the_deadline_fails(
     failed = np.array([bool(m.flags & StatusFlags.ZERO_FAILED) for m in msgs])
     assert not failed[t <= 120.0].any() and failed[t > 120.0].all()
     assert decode_state(sink.states[-1]).zero.status == ZeroStatus.FAILED  # type: ignore[union-attr]
+    assert "boot-time zero failed: no window at rest within deadline_s = 120 s" in caplog.text
     # nothing removed beyond the model's bias, before or after the failure
     np.testing.assert_allclose([m.bias_dps for m in msgs],
                                want_model_bias(stream_calibration, shaken), atol=1e-9)

@@ -52,7 +52,7 @@ from gyrotherm.codecs._wire import (
     encode_state,
 )
 from gyrotherm.compensation import Calibration
-from gyrotherm.compensation._zero import ZeroConfig, ZeroStatus
+from gyrotherm.compensation._zero import BootZero, ZeroConfig, ZeroStatus
 from gyrotherm.daemon._accounting import (
     INTERNAL_ERROR,
     NO_SUBSCRIBER,
@@ -80,6 +80,19 @@ _ZERO_UNUSABLE = int(StatusFlags.TEMPERATURE_STALE | StatusFlags.BIAS_INVALID
                      | StatusFlags.SENSOR_FAULT | StatusFlags.NO_CALIBRATION)
 __all__ = ["BAD_TIMESTAMP", "INTERNAL_ERROR", "MAX_ABS_TIME_S", "MAX_TIME_JUMP_S",
            "NO_SUBSCRIBER", "PUBLISH_ERROR", "TIME_BASE_FRAMES", "Counters", "Pipeline", "Sink"]
+
+
+def _log_zero(zero: BootZero, time_s: float) -> None:
+    """The journal line of a decided boot-time zero (once per power-on)."""
+    since = time_s - zero.start_s
+    if zero.status == ZeroStatus.DONE:
+        log.info("boot-time zero done at t = %r s (%.1f s after the start, %d windows "
+                 "refused): x %+.5f, y %+.5f, z %+.5f °/s", time_s, since,
+                 zero.windows_rejected, *zero.offset_dps)
+    else:
+        log.warning("boot-time zero failed: no window at rest within deadline_s = %g s "
+                    "(%d windows refused); only the calibration's bias is removed until "
+                    "the next power-on", zero.config.deadline_s, zero.windows_rejected)
 
 
 class Pipeline(TimeWindow):
@@ -214,6 +227,7 @@ class Pipeline(TimeWindow):
             assert zero is not None
             if (zero.interrupt(t) if int(flags) & _ZERO_UNUSABLE
                     else zero.push(t, x - b0, y - b1, z - b2)):  # decided: the bias changes
+                _log_zero(zero, t)
                 self._refresh_bias(step=False)
                 flags = self._flags | (flags & (StatusFlags.TEMPERATURE_STALE
                                                 | StatusFlags.COUNTER_JUMP))
