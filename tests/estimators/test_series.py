@@ -91,3 +91,29 @@ def test_matches_on_arbitrary_series(rows: list[tuple[float, float]], period_s: 
     got = estimate_series(t, z, cfg)
     np.testing.assert_allclose(got.temperature_c, want_t, rtol=1e-12, atol=1e-9)
     np.testing.assert_allclose(got.delta_t_c, want_d, rtol=1e-12, atol=1e-9)
+
+
+def test_online_slot_rule_equals_the_offline_one() -> None:
+    """A 1.28-s reading repeated in 10 Hz frames, update_period_s = 1.28: the online
+    estimator fuses one reading per slot as estimate_series does (equal T and ΔT on
+    every row), a repeat of an accepted reading keeps the estimate fresh although the
+    period exceeds stale_after_s, and a repeat of a rejected one does not."""
+    cfg = EstimatorConfig(update_period_s=1.28, stale_after_s=1.0)
+    t = np.arange(0.0, 300.0, 0.1)
+    slot = np.floor(t / 1.28 + 1e-9)
+    reading = np.round((20.0 + 0.05 * slot * 1.28) / 0.125) * 0.125  # held, quantised
+    offline = estimate_series(t, reading, cfg)
+    est = TemperatureEstimator(cfg)
+    online = [est.update(float(a), float(b)) for a, b in zip(t, reading, strict=True)]
+    np.testing.assert_allclose([e.temperature_c for e in online], offline.temperature_c,
+                               atol=1e-9)
+    np.testing.assert_allclose([e.delta_t_c for e in online], offline.delta_t_c, atol=1e-9)
+    assert online[-1].updates == len(np.unique(slot))
+    assert not any(e.stale for e in online)  # 1.28 s > stale_after_s, repeats arrive
+    spike = TemperatureEstimator(cfg)
+    for a, b in zip(t[:100], reading[:100], strict=True):
+        spike.update(float(a), float(b))
+    first = math.floor(10.0 / 1.28 + 1e-9) + 1  # the next slot opens with a spike
+    t0 = first * 1.28
+    assert spike.update(t0, 500.0).rejected
+    assert spike.update(t0 + 1.2, 500.0).stale  # its repeats do not count as fresh

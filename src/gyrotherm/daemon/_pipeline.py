@@ -6,11 +6,10 @@ tests). Per rate frame it only decodes, subtracts a cached bias, encodes and
 publishes; the estimator and the compensator (:mod:`._compensation`) run per
 *temperature* frame, where T and ΔT change. With an estimator ``update_period_s``
 P > 0 (a calibration fitted on a sensor that refreshes every P s) a temperature
-frame is fused only when
-it opens a new slot ``floor(t / P)``, the rule offline features use
-(:func:`gyrotherm.estimators.estimate_series`): a sensor that repeats its held
-reading in faster frames is fused once per refresh, as in the fit; the other frames
-step the compensator at the unchanged estimate.
+frame is fused only when it opens a new slot ``floor(t / P)``
+(:meth:`TemperatureEstimator.update`, the rule offline features use): a sensor that repeats its held reading in faster frames is
+fused once per refresh, as in the fit; the other frames step the compensator at the
+unchanged estimate.
 
 Accounting: every frame handed to :meth:`process` is either published or dropped with
 a reason, so ``frames_received == frames_published + sum(drops.values())`` at all
@@ -38,7 +37,6 @@ from __future__ import annotations
 import logging
 import math
 from collections import Counter
-from dataclasses import replace
 from typing import Any
 
 from gyrotherm._errors import ConfigError, PublishError
@@ -131,7 +129,6 @@ class Pipeline(TimeWindow):
         self._last_counter: int | None = None
         self.last_sensor_time_s: float | None = None
         self._last_temperature_s = -math.inf
-        self._temperature_slot = math.nan  # floor(t / update_period_s) of the last fused frame
         self._sensor_status = 0  # status signal of the latest temperature frame
         self.calibration: Calibration | None = None
         self._estimator = TemperatureEstimator(self._default_estimator)
@@ -274,15 +271,7 @@ class Pipeline(TimeWindow):
         self._temperature_run_n = 0
         self._temperature_rx_s = receive_time_s
         self._temperature_dropping = False
-        period = self._estimator.config.update_period_s
-        slot = math.floor(t / period + 1e-9) if period > 0 else math.nan
-        if period <= 0 or slot != self._temperature_slot or not self._estimator.initialised:
-            self.last_estimate = self._estimator.update(t, s.temperature_c)
-            self._temperature_slot = slot
-        else:  # the sensor's held reading, already fused in this slot (as the fit fed it)
-            est = self._estimator.estimate(t)
-            # a frame arrived: not stale, also when P > stale_after_s
-            self.last_estimate = replace(est, stale=False) if est.stale else est
+        self.last_estimate = self._estimator.update(t, s.temperature_c)  # one per slot
         self._last_temperature_s = t
         self._sensor_status = s.status or 0
         self._refresh_bias(step=True)

@@ -71,9 +71,9 @@ class EstimatorConfig:
     """Spectral density q of the white jerk driving dT/dt, °C²/s³."""
     update_period_s: float = 0.0
     """The sensor's refresh period, s: one reading per slot floor(time_s / period) is
-    fed to the filter (0 = every reading), offline from a run file's rows and in the
-    daemon from its temperature frames alike. Set it when rows or frames repeat a
-    held reading."""
+    fed to the filter (0 = every reading), offline from a run file's rows
+    (:func:`estimate_series`) and online by :meth:`TemperatureEstimator.update`
+    alike. Set it when rows or frames repeat a held reading."""
     gate_sigma: float = 6.0
     """Innovation gate, in standard deviations of the innovation."""
     max_consecutive_rejections: int = 5
@@ -158,6 +158,7 @@ class TemperatureEstimator:
         self._kf.R = np.array([[self._cfg.measurement_variance_c2]])
         self._time_s: float | None = None
         self._last_reading_s: float | None = None
+        self._slot = math.nan  # floor(t / update_period_s) of the latest reading offered
         self._updates = 0
         self._rejections = 0
         self._rejected = False
@@ -200,6 +201,7 @@ class TemperatureEstimator:
         """Forget the state: the next reading initialises the filter (counters kept)."""
         self._time_s = None
         self._last_reading_s = None
+        self._slot = math.nan
         self._updates = 0
         self._rejections = 0
         self._rejected = False
@@ -233,7 +235,21 @@ class TemperatureEstimator:
 
         Readings older than the filter's time are fused at the filter's time
         (no retrodiction). Non-finite readings are rejected.
+
+        With ``update_period_s`` P > 0 only a reading that opens a new slot
+        floor(t / P) is fused (the rule of :func:`estimate_series`, so online and
+        offline features agree): a later one in the same slot repeats the sensor's
+        held reading. It is not fused, but it counts as arrived for the stale flag
+        (unless the slot's reading was rejected), also when P > ``stale_after_s``.
         """
+        period = self._cfg.update_period_s
+        if period > 0 and math.isfinite(time_s):
+            slot = math.floor(time_s / period + 1e-9)
+            if slot == self._slot:
+                if not self._rejected and self._last_reading_s is not None:
+                    self._last_reading_s = max(time_s, self._last_reading_s)
+                return self.estimate(time_s)
+            self._slot = slot
         self._fuse(time_s, temperature_c)
         if not math.isfinite(time_s):
             time_s = self._time_s or 0.0
