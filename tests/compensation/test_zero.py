@@ -7,8 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from gyrotherm import ConfigError
-from gyrotherm.compensation._zero import BootZero, ZeroConfig, ZeroStatus, zero_series
+from gyrotherm import CalibrationError, ConfigError
+from gyrotherm.compensation._zero import (
+    BootZero,
+    ZeroConfig,
+    ZeroStatus,
+    check_saved,
+    zero_series,
+)
 
 CFG = ZeroConfig(window_s=4.0, settle_s=2.0, max_std_dps=0.1, max_step_dps=0.02,
                  max_offset_dps=0.5, deadline_s=30.0)
@@ -92,9 +98,15 @@ def test_unusable_samples_do_not_stop_the_deadline() -> None:
 def test_restart_and_restore() -> None:
     bz = BootZero(CFG)
     assert bz.status == ZeroStatus.OFF and not bz.push(0.0, 0.0, 0.0, 0.0)
-    bz.restore(ZeroStatus.DONE, (0.1, 0.2, 0.3), 5.0)
+    saved = {"status": "done", "offset_dps": [0.1, 0.2, 0.3], "done_s": 5.0}
+    assert bz.restore(check_saved(saved, "state.json"), 8.0)
     assert bz.status == ZeroStatus.DONE and bz.offset_dps == (0.1, 0.2, 0.3)
-    assert bz.to_dict() == {"status": "done", "offset_dps": [0.1, 0.2, 0.3], "done_s": 5.0}
+    assert bz.to_dict() == saved
+    assert not bz.restore({**saved, "status": "failed"}, 9.0)  # measured again from 9 s
+    assert bz.status == ZeroStatus.PENDING and bz.start_s == 9.0
+    assert not bz.restore(None, 9.5) and bz.start_s == 9.5
+    with pytest.raises(CalibrationError, match=r"state.json: field 'zero.offset_dps'"):
+        check_saved({**saved, "offset_dps": [0.1, "x", 0.3]}, "state.json")
     bz.start(10.0)
     assert bz.status == ZeroStatus.PENDING and bz.offset_dps == (0.0, 0.0, 0.0)
     bz.stop()

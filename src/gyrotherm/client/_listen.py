@@ -32,7 +32,13 @@ from gyrotherm._errors import ConfigError
 from gyrotherm._zenoh import DEFAULT_CONNECT, open_session
 from gyrotherm.client._stats import LatencyStats, StreamStats
 from gyrotherm.client._subscriber import Subscriber
-from gyrotherm.codecs._wire import HealthMessage, RateMessage, StateMessage, StatusFlags
+from gyrotherm.codecs._wire import (
+    HealthMessage,
+    RateMessage,
+    StateMessage,
+    StatusFlags,
+    ZeroStatus,
+)
 
 #: Without ``--timeout-s``: give up when nothing at all arrived within this long, s.
 NOTHING_TIMEOUT_S = 30.0
@@ -93,8 +99,8 @@ def format_line(
         parts.append(f"T {state.temperature_c:.2f} C  dT {state.delta_t_c:+.3f} C")
         z = state.zero
         if z is not None:
-            name = {0: "off", 1: "pending", 2: "done", 3: "failed"}.get(z.status, str(z.status))
-            parts.append(f"zero {name}" + (f"[{_vec(z.offset_dps)}]" if z.status == 2 else ""))
+            done = z.status == ZeroStatus.DONE
+            parts.append(f"zero {z.status_name}" + (f"[{_vec(z.offset_dps)}]" if done else ""))
     flags = rate.flags if rate is not None else (state.flags if state else StatusFlags.NONE)
     lat = rate_stats.latency
     parts.append(f"flags={_flags_text(flags)}")

@@ -155,12 +155,10 @@ def state_json(msg: StateMessage) -> dict[str, Any]:
         "effects": {a: {k: (_num(v) if isinstance(v, float) else v)
                         for k, v in e._asdict().items()} for a, e in msg.effects.items()},
         "zero": None if msg.zero is None else {
-            "status": _ZERO_STATUS.get(msg.zero.status, str(msg.zero.status)),
+            "status": msg.zero.status_name,
             "offset_dps": {a: _num(z) for a, z in zip("xyz", msg.zero.offset_dps, strict=True)}},
     }  # fmt: skip
 
-
-_ZERO_STATUS = {0: "off", 1: "pending", 2: "done", 3: "failed"}
 
 
 def health_json(msg: HealthMessage) -> dict[str, Any]:

@@ -132,13 +132,35 @@ class AxisEffects(NamedTuple):
     """The additive effects' part of the bias (without the base polynomial), °/s."""
 
 
+class ZeroStatus(enum.IntEnum):
+    """Where the boot-time zero stands (the state message's ``zero`` element 0;
+    :mod:`gyrotherm.compensation._zero`)."""
+
+    OFF = 0
+    """Not configured (or no calibration loaded)."""
+    PENDING = 1
+    """Started, no window accepted yet: the switch-on offset is still in the rate."""
+    DONE = 2
+    """A window was accepted: z is removed."""
+    FAILED = 3
+    """No window accepted within ``deadline_s``: z = 0 until the next start."""
+
+
 class ZeroState(NamedTuple):
     """The boot-time zero in a state message (docs/model.md, "Boot-time zero")."""
 
     status: int
-    """0 off, 1 pending, 2 done, 3 failed (:class:`gyrotherm.compensation.ZeroStatus`)."""
+    """0 off, 1 pending, 2 done, 3 failed (:class:`ZeroStatus`)."""
     offset_dps: Vec3
     """z per axis (x, y, z), °/s: included in ``bias_dps``; zeros unless done."""
+
+    @property
+    def status_name(self) -> str:
+        """"off", "pending", "done" or "failed" (the number as text if unknown)."""
+        try:
+            return ZeroStatus(self.status).name.lower()
+        except ValueError:
+            return str(self.status)
 
 
 @dataclass(frozen=True, slots=True)

@@ -37,7 +37,6 @@ so both give the same z bit for bit on the same samples.
 
 from __future__ import annotations
 
-import enum
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
@@ -46,23 +45,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from gyrotherm._errors import ConfigError
+from gyrotherm._errors import CalibrationError, ConfigError
+from gyrotherm.codecs._wire import ZeroStatus
+
+__all__ = ["BootZero", "ZeroConfig", "ZeroSeries", "ZeroStatus", "check_saved", "zero_series"]
 
 FloatArray = NDArray[np.float64]
 _AXES = ("x", "y", "z")
-
-
-class ZeroStatus(enum.IntEnum):
-    """Where the boot-time zero stands (the state message's ``zero`` element 0)."""
-
-    OFF = 0
-    """Not configured (or no calibration loaded)."""
-    PENDING = 1
-    """Started, no window accepted yet: the switch-on offset is still in the rate."""
-    DONE = 2
-    """A window was accepted: z is removed."""
-    FAILED = 3
-    """No window accepted within ``deadline_s``: z = 0 until the next start."""
 
 
 _LIMITS: dict[str, tuple[float, float]] = {
@@ -145,12 +134,18 @@ class BootZero:
         self.status, self.offset_dps = ZeroStatus.OFF, (0.0, 0.0, 0.0)
         self.start_s = self.done_s = self._open_s = math.nan
 
-    def restore(self, status: ZeroStatus, offset_dps: tuple[float, float, float],
-                done_s: float) -> None:
-        """Continue a zero measured before a restart (only ``DONE`` keeps its offset)."""
-        if status == ZeroStatus.DONE:
-            self.status, self.offset_dps, self.done_s = status, offset_dps, done_s
-            self._open_s = math.nan
+    def restore(self, saved: Mapping[str, Any] | None, time_s: float) -> bool:
+        """Continue after a restart from :meth:`to_dict`'s output (checked by
+        :func:`check_saved`): a zero that was done keeps its offset (True); otherwise
+        (none saved, pending or failed) it starts again at ``time_s`` (s)."""
+        if saved is None or saved.get("status") != "done":
+            self.start(time_s)
+            return False
+        x, y, z = (float(v) for v in saved["offset_dps"])
+        done = saved.get("done_s")
+        self.status, self.offset_dps = ZeroStatus.DONE, (x, y, z)
+        self.done_s, self._open_s = math.nan if done is None else float(done), math.nan
+        return True
 
     def interrupt(self, time_s: float) -> bool:
         """An unusable sample at ``time_s`` (s): the open window is discarded. The
@@ -228,6 +223,30 @@ class BootZero:
         """What a restarted daemon needs (``status``, ``offset_dps``, ``done_s``)."""
         return {"status": self.status.name.lower(), "offset_dps": list(self.offset_dps),
                 "done_s": None if math.isnan(self.done_s) else self.done_s}
+
+
+def check_saved(z: Any, source: str) -> dict[str, Any]:
+    """:meth:`BootZero.to_dict`'s output read back from ``source`` (a state file):
+    the same mapping with floats, or CalibrationError naming the field and value."""
+    where = f"{source}: field 'zero"
+    if not isinstance(z, dict):
+        raise CalibrationError(f"{where}': expected an object, got {z!r:.60}")
+    if z.get("status") not in {s.name.lower() for s in ZeroStatus}:
+        raise CalibrationError(f"{where}.status': expected off, pending, done or failed, "
+                               f"got {z.get('status')!r:.60}")
+    off = z.get("offset_dps")
+    if (not isinstance(off, list) or len(off) != 3 or not all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+            for v in off)):
+        raise CalibrationError(f"{where}.offset_dps': expected 3 finite numbers (°/s), "
+                               f"got {off!r:.60}")
+    done = z.get("done_s")
+    if done is not None and (isinstance(done, bool) or not isinstance(done, int | float)
+                             or not math.isfinite(done)):
+        raise CalibrationError(f"{where}.done_s': expected a finite number or null, "
+                               f"got {done!r:.60}")
+    return {"status": z["status"], "offset_dps": [float(v) for v in off],
+            "done_s": None if done is None else float(done)}
 
 
 @dataclass(frozen=True)

@@ -45,7 +45,7 @@ from typing import Any
 from gyrotherm.codecs._wire import AxisEffects, StatusFlags, ZeroState
 from gyrotherm.compensation import Calibration, Compensator
 from gyrotherm.compensation._effects_state import EffectFlags
-from gyrotherm.compensation._zero import BootZero, ZeroConfig, ZeroStatus
+from gyrotherm.compensation._zero import BootZero, ZeroConfig
 
 log = logging.getLogger("gyrotherm.daemon")
 
@@ -140,18 +140,10 @@ class Compensation:
                 self.zero.start(time_s)
 
     def _restore_zero(self, snap: EffectsSnapshot, time_s: float) -> None:
-        z = self.zero
-        if z is None:
-            return
-        saved = snap.zero or {}
-        if saved.get("status") == "done":
-            x, y, w = saved["offset_dps"]
-            done = saved.get("done_s")
-            z.restore(ZeroStatus.DONE, (float(x), float(y), float(w)),
-                      math.nan if done is None else float(done))
-            log.info("boot-time zero restored: %s °/s", ", ".join(f"{v:+.5f}" for v in (x, y, w)))
-        else:  # pending or failed before the restart: try again from now
-            z.start(time_s)
+        z = self.zero  # pending or failed before the restart: it starts again now
+        if z is not None and z.restore(snap.zero, time_s):
+            log.info("boot-time zero restored: %s °/s",
+                     ", ".join(f"{v:+.5f}" for v in z.offset_dps))
 
     def snapshot(self) -> EffectsSnapshot | None:
         """The state to persist, None before the first step."""

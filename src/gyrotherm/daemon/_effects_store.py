@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from gyrotherm._errors import CalibrationError
+from gyrotherm.compensation._zero import check_saved
 from gyrotherm.daemon._compensation import Compensation, EffectsSnapshot
 
 log = logging.getLogger("gyrotherm.daemon")
@@ -119,32 +120,13 @@ def load(path: Path) -> SavedEffects | None:
 def _zero_or_none(doc: dict[str, Any], src: str) -> dict[str, Any] | None:
     """The saved zero; a malformed one is logged and dropped alone (the effects state
     is still restored; the zero is then measured again)."""
+    if "zero" not in doc:
+        return None
     try:
-        return _zero(doc, src)
+        return check_saved(doc["zero"], src)
     except CalibrationError as exc:
         log.warning("saved boot-time zero ignored (measured again): %s", exc)
         return None
-
-
-def _zero(doc: dict[str, Any], src: str) -> dict[str, Any] | None:
-    if "zero" not in doc:
-        return None
-    z = _field(doc, "zero", dict, "an object", src)
-    if z.get("status") not in ("off", "pending", "done", "failed"):
-        raise CalibrationError(f"{src}: field 'zero.status': expected off, pending, done or "
-                               f"failed, got {z.get('status')!r:.60}")
-    off = z.get("offset_dps")
-    if (not isinstance(off, list) or len(off) != 3 or not all(
-            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-            for v in off)):
-        raise CalibrationError(f"{src}: field 'zero.offset_dps': expected 3 finite numbers "
-                               f"(°/s), got {off!r:.60}")
-    done = z.get("done_s")
-    if done is not None and (isinstance(done, bool) or not isinstance(done, int | float)
-                             or not math.isfinite(done)):
-        raise CalibrationError(f"{src}: field 'zero.done_s': expected a finite number or "
-                               f"null, got {done!r:.60}")
-    return {"status": z["status"], "offset_dps": [float(v) for v in off], "done_s": done}
 
 
 class EffectsKeeper:

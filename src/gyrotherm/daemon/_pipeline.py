@@ -7,9 +7,9 @@ publishes; the estimator and the compensator (:mod:`._compensation`) run per
 *temperature* frame, where T and ΔT change. With an estimator ``update_period_s``
 P > 0 (a calibration fitted on a sensor that refreshes every P s) a temperature
 frame is fused only when it opens a new slot ``floor(t / P)``
-(:meth:`TemperatureEstimator.update`, the rule offline features use): a sensor that repeats its held reading in faster frames is
-fused once per refresh, as in the fit; the other frames step the compensator at the
-unchanged estimate.
+(:meth:`TemperatureEstimator.update`, the rule offline features use): a sensor
+that repeats its held reading in faster frames is fused once per refresh, as in the
+fit; the other frames step the compensator at the unchanged estimate.
 
 Accounting: every frame handed to :meth:`process` is either published or dropped with
 a reason, so ``frames_received == frames_published + sum(drops.values())`` at all
