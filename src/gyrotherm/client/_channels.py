@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import threading
+import time
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -93,6 +94,12 @@ class Fanout:
                          for s in self._sinks]  # fmt: skip
         self.counts: Counter[str] = Counter()
         self.first_message = threading.Event()
+        self.last_message_s = time.monotonic()
+        """When the latest message (any stream) arrived, monotonic s (else construction)."""
+
+    def _arrived(self) -> None:
+        self.last_message_s = time.monotonic()
+        self.first_message.set()
 
     def _emit(self, name: str, t_ns: int, data: bytes) -> None:
         """Write to every sink; counted by topic (``counts``; also
@@ -108,11 +115,12 @@ class Fanout:
             raw = _ros.imu_cdr(msg.sensor_time_s, self.frame_id, msg.raw_rate_dps, cov)
         except ValueError:  # a sensor time no ROS 2 Time can hold: counted, not written
             self.counts["unrepresentable_stamp"] += 1
+            self._arrived()
             return
         with self._lock:
             self._emit("imu", t_ns, imu)
             self._emit("imu_raw", t_ns, raw)
-        self.first_message.set()
+        self._arrived()
 
     def on_state(self, msg: StateMessage) -> None:
         t_ns = _ns(msg.receive_time_s)
@@ -127,13 +135,13 @@ class Fanout:
             if temp is not None:
                 self._emit("temperature", t_ns, temp)
             self._emit("state", t_ns, state)
-        self.first_message.set()
+        self._arrived()
 
     def on_health(self, msg: HealthMessage) -> None:
         data = json.dumps(_ros.health_json(msg)).encode()
         with self._lock:
             self._emit("health", _ns(msg.receive_time_s), data)
-        self.first_message.set()
+        self._arrived()
 
     def close(self) -> None:
         with self._lock:

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import threading
 import time
@@ -135,8 +136,6 @@ def record_main(argv: Sequence[str] | None = None, *,
 
 def _positive(args: argparse.Namespace) -> str | None:
     """The error text for a duration, timeout or count that is not a positive number."""
-    import math
-
     for dest, opt in (("duration_s", "--duration-s"), ("idle_timeout_s", "--idle-timeout-s"),
                       ("calibration_timeout_s", "--calibration-timeout-s"), ("count", "--count")):
         v = getattr(args, dest)
@@ -193,25 +192,15 @@ def _record(args: argparse.Namespace, session: Any, stop: threading.Event,
             sink.close()
         raise
     rates = threading.Semaphore(0)
-    last = [time.monotonic()]  # when the latest message (any stream) arrived
 
     def on_rate(msg: Any) -> None:
         fan.on_rate(msg)
-        last[0] = time.monotonic()
         rates.release()
-
-    def on_state(msg: Any) -> None:
-        fan.on_state(msg)
-        last[0] = time.monotonic()
-
-    def on_health(msg: Any) -> None:
-        fan.on_health(msg)
-        last[0] = time.monotonic()
 
     t0 = time.monotonic()
     try:
         with Subscriber(args.vehicle, args.sensor, session=session, on_rate=on_rate,
-                        on_state=on_state, on_health=on_health) as sub:  # fmt: skip
+                        on_state=fan.on_state, on_health=fan.on_health) as sub:  # fmt: skip
             if not args.quiet:
                 where = f" → {args.mcap}" if args.mcap else ""
                 live = ("" if server_port is None
@@ -226,7 +215,7 @@ def _record(args: argparse.Namespace, session: Any, stop: threading.Event,
                     pass
                 on_ready(server_port)
             stopped_by = _wait(stop, rates, args.count, args.duration_s,
-                               args.idle_timeout_s, last)
+                               args.idle_timeout_s, fan)
             stats = sub.stats()
     finally:
         fan.close()
@@ -257,9 +246,9 @@ def _record(args: argparse.Namespace, session: Any, stop: threading.Event,
 
 def _wait(stop: threading.Event, rates: threading.Semaphore, count: int | None,
           duration_s: float | None, idle_s: float | None = None,
-          last: list[float] | None = None) -> str:  # fmt: skip
+          fan: Fanout | None = None) -> str:  # fmt: skip
     """Block until a stop; which one: "signal", "duration", "count" or "idle" (no
-    message since ``last[0]`` (monotonic, s) for ``idle_s``)."""
+    message through ``fan`` for ``idle_s``)."""
     deadline = None if duration_s is None else time.monotonic() + duration_s
     seen = 0
     while not stop.is_set():
@@ -267,7 +256,7 @@ def _wait(stop: threading.Event, rates: threading.Semaphore, count: int | None,
         left = None if deadline is None else deadline - now
         if left is not None and left <= 0:
             return "duration"
-        if idle_s is not None and last is not None and now - last[0] >= idle_s:
+        if idle_s is not None and fan is not None and now - fan.last_message_s >= idle_s:
             return "idle"
         step = 0.2 if left is None else min(0.2, left)
         if count is None:
