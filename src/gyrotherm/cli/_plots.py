@@ -26,7 +26,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from gyrotherm.compensation import Calibration, RunFeatures, ZeroConfig, removed_bias, score
+from gyrotherm.compensation import (
+    Calibration,
+    RemovedBias,
+    RunFeatures,
+    ZeroConfig,
+    removed_bias,
+    score,
+)
 
 FloatArray = NDArray[np.float64]
 BLOCK_S = 10.0  # means over 10-s blocks: the bias, not the white noise, is what is drawn
@@ -59,28 +66,28 @@ def direction(delta_t_c: FloatArray) -> NDArray[np.str_]:
     return out
 
 
-def _bias(cal: Calibration, f: RunFeatures, axis: str, zero: ZeroConfig | None = None
-          ) -> FloatArray:
-    """The bias removed on each row (with the boot-time zero when ``zero`` is given)."""
-    if zero is not None:
-        return np.asarray(removed_bias(cal, f, zero=zero).bias[axis][0], dtype=np.float64)
-    bias, _ = cal.bias_series(axis, f.temperature_c, f.delta_t_c, f.time_s)
-    return np.asarray(bias, dtype=np.float64)
+Removed = Sequence[RemovedBias]
+"""Per run (parallel to ``feats``), the bias removed: :func:`removed_bias`, computed once
+per report (with the boot-time zero for ``evaluate --zero``)."""
 
 
-def _runs(feats: Sequence[RunFeatures], axis: str) -> list[RunFeatures]:
-    return [f for f in feats if axis in f.rates_dps]
+def _runs(cal: Calibration, feats: Sequence[RunFeatures], axis: str,
+          removed: Removed | None) -> list[tuple[RunFeatures, FloatArray]]:
+    """The runs with ``axis``, each with the bias removed on that axis (°/s per row)."""
+    rbs = removed if removed is not None else [removed_bias(cal, f) for f in feats]
+    return [(f, np.asarray(rb.bias[axis][0], dtype=np.float64))
+            for f, rb in zip(feats, rbs, strict=True) if axis in f.rates_dps]
 
 
 def figure_bias_vs_temperature(cal: Calibration, feats: Sequence[RunFeatures], axis: str, *,
-                               zero: ZeroConfig | None = None) -> Any:
+                               removed: Removed | None = None) -> Any:
     """Measured 10-s means against T by direction; the model along the data; at ΔT = 0."""
     fig = _figure(figsize=(7.5, 5))
     ax = fig.add_subplot()
     pts: dict[str, list[FloatArray]] = {k: [] for k in COLOURS}
-    for i, f in enumerate(_runs(feats, axis)):
+    for i, (f, bias) in enumerate(_runs(cal, feats, axis, removed)):
         _, t, d, y, b = block_means(f.time_s, f.temperature_c, f.delta_t_c,
-                                    f.rates_dps[axis], _bias(cal, f, axis, zero))
+                                    f.rates_dps[axis], bias)
         kind = direction(d)
         for k in COLOURS:
             pts[k].append(np.column_stack([t[kind == k], y[kind == k]]))
@@ -107,14 +114,14 @@ def figure_bias_vs_temperature(cal: Calibration, feats: Sequence[RunFeatures], a
 
 
 def figure_rate_vs_time(cal: Calibration, feats: Sequence[RunFeatures], axis: str, *,
-                        zero: ZeroConfig | None = None) -> Any:
+                        removed: Removed | None = None) -> Any:
     """One panel per run: raw and compensated 10-s means, T on a second y-axis."""
-    runs = _runs(feats, axis)
+    runs = _runs(cal, feats, axis, removed)
     fig = _figure(figsize=(9, 2.4 * len(runs) + 0.6))
-    for i, f in enumerate(runs):
+    for i, (f, bias) in enumerate(runs):
         ax = fig.add_subplot(len(runs), 1, i + 1)
         raw = f.rates_dps[axis]
-        tm, y, c, temp = block_means(f.time_s, raw, raw - _bias(cal, f, axis, zero),
+        tm, y, c, temp = block_means(f.time_s, raw, raw - bias,
                                      f.temperature_c)
         ax.plot(tm / 60, y, color="0.45", lw=1.0, label="raw")
         ax.plot(tm / 60, c, color="tab:blue", lw=1.0, label="compensated (raw − fitted bias)")
@@ -134,11 +141,11 @@ def figure_rate_vs_time(cal: Calibration, feats: Sequence[RunFeatures], axis: st
 
 
 def figure_residual_histogram(cal: Calibration, feats: Sequence[RunFeatures], axis: str, *,
-                              zero: ZeroConfig | None = None) -> Any:
+                              removed: Removed | None = None) -> Any:
     """Raw and compensated output of all runs pooled (every sample), RMS in the legend."""
-    runs = _runs(feats, axis)
-    raw = np.concatenate([f.rates_dps[axis] for f in runs])
-    comp = np.concatenate([f.rates_dps[axis] - _bias(cal, f, axis, zero) for f in runs])
+    runs = _runs(cal, feats, axis, removed)
+    raw = np.concatenate([f.rates_dps[axis] for f, _ in runs])
+    comp = np.concatenate([f.rates_dps[axis] - bias for f, bias in runs])
     lo, hi = np.percentile(np.concatenate([raw, comp]), [0.1, 99.9])
     bins = np.linspace(lo, hi, 80)
     fig = _figure(figsize=(7, 4.2))
@@ -166,7 +173,8 @@ def write_fit_report(cal: Calibration, feats: Sequence[RunFeatures], directory: 
                      title: str, calibration_path: str, zero: ZeroConfig | None = None) -> Path:
     """Write every axis' figures and ``report.md`` into ``directory``; the index path.
     ``zero``: the bias removed includes the boot-time zero (``evaluate --zero``)."""
-    axes = [a for a in cal.axes if _runs(feats, a)]
+    removed = [removed_bias(cal, f, zero=zero) for f in feats]
+    axes = [a for a in cal.axes if any(a in f.rates_dps for f in feats)]
     lines = [f"# {title}", "", f"Calibration `{calibration_path}`: model {cal.model.name}, "
              f"runs: {', '.join(f.name for f in feats)}.", "",
              f"Figures show {BLOCK_S:g}-s means (the histograms: every sample). The fitted "
@@ -176,15 +184,15 @@ def write_fit_report(cal: Calibration, feats: Sequence[RunFeatures], directory: 
              + ("" if zero is None else " The bias removed includes the boot-time zero "
                 f"({', '.join(f'{k}={v:g}' for k, v in zero.to_dict().items())})."), "",
              "| run | axis | raw RMS (°/s) | compensated RMS (°/s) |", "|---|---|---|---|"]
-    for f in feats:
-        for s in score(cal, f, zero=zero):
+    for f, rb in zip(feats, removed, strict=True):
+        for s in score(cal, f, removed=rb):
             lines.append(f"| {s.run} | {s.axis} | {s.raw.rms_dps:.4g} | "
                          f"{s.compensated.rms_dps:.4g} |")
     for axis in axes:
         lines += ["", f"## Axis {axis}", ""]
         for stem, make in FIGURES:
             name = f"{stem}_{axis}.png"
-            make(cal, feats, axis, zero=zero).savefig(directory / name, dpi=100)
+            make(cal, feats, axis, removed=removed).savefig(directory / name, dpi=100)
             lines.append(f"![{stem} {axis}]({name})")
     md = directory / "report.md"
     md.write_text("\n".join(lines) + "\n", encoding="utf-8")
