@@ -92,3 +92,28 @@ def test_missing_reader_module_and_unknown_format(
         read_runs(path, spec=InputSpec(format="xls"))
     with pytest.raises(RunFileError, match="no such file"):
         read_runs(tmp_path / "absent.csv", spec=InputSpec(format="text"))
+
+
+def test_detect_format_by_content_not_name(tmp_path: Path) -> None:
+    """Each format's magic bytes decide, whatever the file is called; an empty file goes
+    by its suffix (so the error names the format meant); a DataFlash text log and an
+    empty file of no known suffix are refused with one line."""
+    magic = {"ulog": b"ULog\x01\x12\x35\x01", "dataflash": b"\xa3\x95\x80",
+             "mcap": b"\x89MCAP0\r\n", "db3": b"SQLite format 3\x00",
+             "bag": b"#ROSBAG V2.0\n", "run": b"# gyrotherm-run: 1\n"}
+    want = {"ulog": "ulog", "dataflash": "dataflash", "mcap": "rosbag", "db3": "rosbag",
+            "bag": "rosbag", "run": "run"}
+    for kind, head in magic.items():
+        for name in (f"{kind}.log", f"{kind}.csv", f"{kind}.ulog", kind):
+            path = tmp_path / name
+            path.write_bytes(head + b"\x00" * 32)
+            assert detect_format(path) == want[kind], name
+    for suffix, fmt in {".ulg": "ulog", ".BIN": "dataflash", ".bag": "rosbag"}.items():
+        (tmp_path / f"empty{suffix}").write_bytes(b"")
+        assert detect_format(tmp_path / f"empty{suffix}") == fmt
+    (tmp_path / "empty.csv").write_bytes(b"")
+    with pytest.raises(RunFileError, match=r"empty.csv: the file is empty"):
+        detect_format(tmp_path / "empty.csv")
+    (tmp_path / "flight.log").write_text("FMT, 128, 89, FMT, BBnNZ, Type,Length,Name\n")
+    with pytest.raises(RunFileError, match=r"flight.log: an ArduPilot DataFlash text log"):
+        detect_format(tmp_path / "flight.log")

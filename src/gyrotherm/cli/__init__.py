@@ -7,8 +7,8 @@ import sys
 from collections.abc import Sequence
 
 from gyrotherm import __version__
-from gyrotherm._errors import GyrothermError
 from gyrotherm.cli import _conventions, _demo, _diagnose, _export, _import, _offline, _run
+from gyrotherm.cli._guard import run_command
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -18,6 +18,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"gyrotherm {__version__}")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    parser.add_argument("--debug", action="store_true",
+                        help="let an unexpected error through with its traceback "
+                        "(default: one line and the file holding the traceback)")
     sub = parser.add_subparsers(dest="command", required=True)
     _offline.register(sub)
     _run.register(sub)
@@ -46,12 +49,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                            formatter_class=_conventions.DefaultsFormatter)
     parser = build_parser()
     args = parser.parse_args(args_list)
-    try:
-        code: int = args.func(args)
-    except GyrothermError as exc:
-        print(f"gyrotherm: error: {exc}", file=sys.stderr)
-        return 2
-    return code
+    return run_command(args.func, args, args_list)  # one line per failure (cli._guard)
 
 
 __all__ = ["build_parser", "main"]

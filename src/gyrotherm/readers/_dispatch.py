@@ -1,11 +1,14 @@
 """Which reader reads a file: :func:`read_runs`.
 
-With ``format="auto"``, decided per path:
+With ``format="auto"``, decided per path by content, not by name:
 
-1. a directory holding ``metadata.yaml`` (rosbag2), or a ``.mcap`` / ``.db3``
-   file → ``rosbag``;
-2. ``.ulg`` → ``ulog`` (PX4); ``.bin`` → ``dataflash`` (ArduPilot);
-3. first line ``# gyrotherm-run: 1`` → ``run`` (a gyrotherm run file);
+1. a directory holding ``metadata.yaml`` → ``rosbag`` (rosbag2);
+2. a file's first bytes: ``ULog\x01\x12\x35`` → ``ulog`` (PX4); ``\xa3\x95`` →
+   ``dataflash`` (ArduPilot); ``\x89MCAP``, ``SQLite format 3\0`` (rosbag2 ``.db3``)
+   or ``#ROSBAG V2.0`` (ROS 1) → ``rosbag``; ``# gyrotherm-run:`` → ``run``;
+3. an empty file → by its suffix (``.ulg``, ``.bin``, ``.mcap``, ``.db3``, ``.bag``),
+   so the error names the format the user meant; a DataFlash text log (first line
+   ``FMT, ...``) is refused with one line;
 4. first non-empty line ``(<seconds>) <iface> <id>#<data>`` → ``candump``;
 5. anything else → ``text`` (delimited text, :mod:`gyrotherm.readers._text`).
 
@@ -33,7 +36,18 @@ from gyrotherm.readers._text import read_text
 FORMATS = ("auto", "run", "text", "candump", "ulog", "dataflash", "rosbag")
 """Values of ``InputSpec.format`` / ``--format``."""
 _MAGIC = b"# gyrotherm-run:"
-_SUFFIX = {".ulg": "ulog", ".bin": "dataflash", ".mcap": "rosbag", ".db3": "rosbag"}
+_CONTENT_MAGIC = (
+    (b"ULog\x01\x12\x35", "ulog"),
+    (b"\xa3\x95", "dataflash"),
+    (b"\x89MCAP", "rosbag"),
+    (b"SQLite format 3\x00", "rosbag"),
+    (b"#ROSBAG V2.0", "rosbag"),
+    (_MAGIC, "run"),  # (with a BOM, codecs.read_run refuses it: read as text below)
+)
+"""A file's first bytes → its format (module docstring)."""
+_SUFFIX = {".ulg": "ulog", ".bin": "dataflash", ".mcap": "rosbag", ".db3": "rosbag",
+           ".bag": "rosbag"}
+_HEAD_BYTES = 16
 
 
 def detect_format(path: str | os.PathLike[str]) -> str:
@@ -43,16 +57,25 @@ def detect_format(path: str | os.PathLike[str]) -> str:
         if (p / "metadata.yaml").is_file():
             return "rosbag"
         raise RunFileError(f"{p}: a directory, but not a rosbag2 one (no metadata.yaml)")
-    by_suffix = _SUFFIX.get(p.suffix.lower())
-    if by_suffix:
-        return by_suffix
+    if not p.exists():  # read_runs says so; the name tells what was meant
+        return _SUFFIX.get(p.suffix.lower(), "text")
     try:
         with p.open("rb") as fh:
-            head = fh.read(len(_MAGIC) + 3)
+            head = fh.read(_HEAD_BYTES)
     except OSError as exc:
         raise RunFileError(f"{p}: cannot read: {exc.strerror}") from exc
-    if head.startswith(_MAGIC):
-        return "run"  # (with a BOM, codecs.read_run refuses it: read as text below)
+    for magic, fmt in _CONTENT_MAGIC:
+        if head.startswith(magic):
+            return fmt
+    if not head:
+        by_suffix = _SUFFIX.get(p.suffix.lower())
+        if by_suffix:
+            return by_suffix
+        raise RunFileError(f"{p}: the file is empty (0 bytes); give a file with data")
+    if head.startswith(b"FMT,"):
+        raise RunFileError(f"{p}: an ArduPilot DataFlash text log (first line 'FMT, ...'), "
+                           "which gyrotherm does not read; give the binary .bin log the "
+                           "autopilot wrote (its SD card's APM/LOGS, or download it)")
     return "candump" if is_candump_log(p) else "text"
 
 

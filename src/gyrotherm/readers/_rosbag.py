@@ -1,7 +1,7 @@
-"""rosbag2 (``.db3``, MCAP storage, or the bag directory) and plain ``.mcap``
-reader, via rosbags (ROS 2 CDR messages, decoded with rosbags' ROS 2 Humble
+"""rosbag2 (``.db3``, MCAP storage, or the bag directory), plain ``.mcap`` and ROS 1
+``.bag`` reader, via rosbags (ROS 2 CDR messages decoded with rosbags' ROS 2 Humble
 type store: ``sensor_msgs`` Imu and Temperature are the same in every ROS 2
-release).
+release; ROS 1 messages with its Noetic store, the types named as in ROS 2).
 
 * IMU: every ``sensor_msgs/msg/Imu`` topic (or only ``imu_topic``); one run per
   topic and ``header.frame_id``. ``header.stamp`` (the sample's time, s since the
@@ -67,13 +67,31 @@ def _pick_temperature(path: Path, imu: str, temps: Sequence[str], chosen: str | 
                        f"{list(temps)}; name one (temperature_topic / --temperature-topic)")
 
 
-def _open(path: Path) -> Any:
+ROS1_MAGIC = b"#ROSBAG V2.0"
+
+
+def is_ros1_bag(path: Path) -> bool:
+    if not path.is_file():
+        return False
+    with path.open("rb") as fh:
+        return fh.read(len(ROS1_MAGIC)) == ROS1_MAGIC
+
+
+def _is_mcap(path: Path) -> bool:
+    if not path.is_file():
+        return False
+    with path.open("rb") as fh:
+        return fh.read(5) == b"\x89MCAP"
+
+
+def _open(path: Path, *, ros1: bool) -> Any:
     try:
-        from rosbags.rosbag2 import Reader
+        from rosbags.rosbag1 import Reader as Reader1
+        from rosbags.rosbag2 import Reader as Reader2
     except ModuleNotFoundError as exc:  # pragma: no cover  (a runtime dependency)
         raise RunFileError(f"{path}: reading rosbag2/MCAP needs rosbags: pip install rosbags"
                            ) from exc
-    reader = Reader(path)
+    reader = Reader1(path) if ros1 else Reader2(path)
     reader.open()
     return reader
 
@@ -124,23 +142,28 @@ def read_rosbag(path: str | os.PathLike[str], *, imu_topic: str | None = None,
     Raises :class:`RunFileError` naming the file, the topic and what is missing.
     """
     p = Path(path)
+    ros1 = is_ros1_bag(p)
+    kind = "ROS 1 bag" if ros1 else "rosbag2/MCAP file"
     try:
-        reader = _open(p)
+        reader = _open(p, ros1=ros1)
     except RunFileError:
         raise
     except Exception as exc:  # rosbags' ReaderError, FileNotFoundError, yaml/sqlite errors
-        raise RunFileError(f"{p}: not a readable rosbag2/MCAP file: {exc}") from exc
+        raise RunFileError(f"{p}: not a readable {kind}: {exc}"
+                           + ("; a cut MCAP file can be salvaged with `mcap recover`"
+                              if "magic" in str(exc).lower() and not ros1 else "")) from exc
     try:
-        return _read(p, reader, imu_topic, temperature_topic)
+        return _read(p, reader, imu_topic, temperature_topic, ros1=ros1)
     finally:
         reader.close()
 
 
-def _read(p: Path, reader: Any, imu_topic: str | None, temperature_topic: str | None
-          ) -> list[Run]:
+def _read(p: Path, reader: Any, imu_topic: str | None, temperature_topic: str | None, *,
+          ros1: bool) -> list[Run]:
     from rosbags.typesys import Stores, get_typestore
 
-    store = get_typestore(Stores.ROS2_HUMBLE)
+    store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    decode = store.deserialize_ros1 if ros1 else store.deserialize_cdr
     topics = {c.topic: c.msgtype for c in reader.connections}
     imus = sorted(t for t, m in topics.items() if m == IMU_TYPE)
     temps = sorted(t for t, m in topics.items() if m == TEMPERATURE_TYPE)
@@ -160,7 +183,7 @@ def _read(p: Path, reader: Any, imu_topic: str | None, temperature_topic: str | 
     try:
         for conn, log_ns, raw in reader.messages([c for c in reader.connections
                                                   if c.topic in wanted]):
-            msg: Any = store.deserialize_cdr(raw, conn.msgtype)
+            msg: Any = decode(raw, conn.msgtype)
             ns = _stamp_ns(msg)
             if conn.msgtype == TEMPERATURE_TYPE:
                 temp_rows[conn.topic].append((ns or log_ns, float(msg.temperature)))
@@ -180,7 +203,7 @@ def _read(p: Path, reader: Any, imu_topic: str | None, temperature_topic: str | 
                         + ((a.x, a.y, a.z) if has_acc else (nan, nan, nan)))
     except Exception as exc:  # truncated/corrupt storage, undecodable message
         raise RunFileError(f"{p}: unreadable message in the bag: {exc}") from exc
-    fmt = "mcap" if p.is_file() and p.suffix.lower() == ".mcap" else "rosbag2"
+    fmt = "rosbag1" if ros1 else "mcap" if _is_mcap(p) else "rosbag2"
     sha = sha256_of(p)
     runs: list[Run] = []
     for (topic, frame), gathered in sorted(imu_rows.items()):
