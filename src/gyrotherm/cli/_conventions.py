@@ -15,8 +15,6 @@ Imports nothing beyond the standard library: ``gyrotherm run`` builds this parse
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -54,12 +52,14 @@ def add_json_option(parser: argparse.ArgumentParser, *, what: str) -> None:
 def emit_json(data: Any, target: str) -> Path | None:
     """Write ``data`` for ``--json TARGET``: stdout for ``-``, else the file (parents
     created; never over a run file). Returns the file written, None for stdout."""
+    from gyrotherm.cli._jsonsafe import dumps  # strict JSON: null for NaN, with why
+
+    text = dumps(data)
     if target == STDOUT:
-        json.dump(data, sys.stdout, indent=2)
-        print()
+        print(text)
         return None
     path = output_path(target, option="--json")
-    path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+    path.write_text(text + "\n", encoding="utf-8")
     return path
 
 

@@ -14,7 +14,6 @@ cubic, in °/s: what the ΔT-free form costs.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -28,6 +27,7 @@ from gyrotherm.cli._inputs import (
     spec_from_args,
     with_recorded_options,
 )
+from gyrotherm.cli._jsonsafe import dumps
 from gyrotherm.codecs import Run
 from gyrotherm.compensation import ErrorMetrics, features, load_calibration
 from gyrotherm.compensation._autopilot import (
@@ -94,8 +94,19 @@ def _rest_rows(run: Run, mode: str) -> np.ndarray:
     return np.ones(len(run), dtype=bool) if mode == "all" else rest_of_run(run).rest
 
 
+MIN_CUBIC_ROWS = 8
+"""Rows the cubic in T needs at least (two per coefficient)."""
+
+
 def fit_cubic(runs: list[Run], mode: str) -> CubicT:
     masks = [_rest_rows(r, mode) for r in runs]
+    kept = sum(int(m.sum()) for m in masks)
+    if kept < MIN_CUBIC_ROWS:
+        raise CalibrationError(
+            f"{', '.join(sorted({r.source for r in runs}))}: {kept} of "
+            f"{sum(len(r) for r in runs)} rows at rest (--rest {mode}), the cubic in T needs "
+            f"at least {MIN_CUBIC_ROWS}; give runs with the gyro still, or --rest all if it "
+            "was still throughout")
     return fit_cubic_t([r.temperature_c[m] for r, m in zip(runs, masks, strict=True)],
                        [{a: v[m] for a, v in r.rates_dps.items()}
                         for r, m in zip(runs, masks, strict=True)])
@@ -107,6 +118,8 @@ def validation_errors(cal: Calibration, cubic: CubicT, runs: list[Run],
     res: dict[str, dict[str, list[np.ndarray]]] = {}
     for run in runs:
         keep = _rest_rows(run, mode)
+        if not keep.any():  # nothing to score in this run
+            continue
         feats = features(run, cal.estimator)
         for axis in cal.axes:
             if axis not in run.rates_dps or axis not in cubic.coefficients_rad_s:
@@ -168,7 +181,7 @@ def cmd_export(args: argparse.Namespace) -> int:
            "validation": {"runs": [r.source for r in valid], "in_sample": in_sample,
                           "rest": args.rest, "axes": errors}, **written}
     if args.json is not None:
-        text = json.dumps(doc, indent=2) + "\n"
+        text = dumps(doc) + "\n"  # strict JSON: null for NaN, with why
         if args.json == "-":
             sys.stdout.write(text)
             return 0

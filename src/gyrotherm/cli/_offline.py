@@ -9,9 +9,9 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from gyrotherm._errors import ConfigError
+from gyrotherm._errors import CalibrationError, ConfigError
 from gyrotherm.cli import _conventions as conv
-from gyrotherm.cli import _fitrest, _paper
+from gyrotherm.cli import _fitgates, _fitrest, _paper
 from gyrotherm.cli._common import (
     add_estimator_options,
     estimator_from_args,
@@ -26,6 +26,7 @@ from gyrotherm.compensation import (
     MODELS,
     Calibration,
     RunFeatures,
+    RunScore,
     ZeroConfig,
     default_scaling,
     features,
@@ -36,6 +37,7 @@ from gyrotherm.compensation import (
     removed_bias,
     score,
 )
+from gyrotherm.compensation._quality import Gate
 from gyrotherm.estimators import EstimatorConfig
 
 # gyrotherm.sim (and scipy.signal with it) is imported inside the commands that
@@ -92,13 +94,14 @@ def cmd_fit(args: argparse.Namespace) -> int:
                                       option="--out") for device in groups}
     with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
         _fitrest.print_rest_report(reports)
+    gates = {device: _fitgates.gate(args, group, device) for device, group in groups.items()}
     if names:
         if len(groups) > 1:
             raise ConfigError(f"--effects fits one device: these runs hold {len(groups)} "
                               f"({', '.join(repr(g) for g in groups)}); fit each apart")
         return _fit_effects(args, est, feats, names)
-    written = [_fit_device(args, est, group, device, paths[device], several=len(groups) > 1)
-               for device, group in groups.items()]
+    written = [_fit_device(args, est, group, device, paths[device], gates[device],
+                           several=len(groups) > 1) for device, group in groups.items()]
     if args.json:
         conv.emit_json({"rest": {"mode": args.rest, "runs": [r.to_dict() for r in reports]},
                         "calibrations": written,
@@ -113,7 +116,7 @@ _SINGLE_KEYS = ("calibration", "model", "method", "coefficients_physical", "per_
 
 
 def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunFeatures],
-                device: str, out: Path, *, several: bool) -> dict[str, Any]:
+                device: str, out: Path, gates: list[Gate], *, several: bool) -> dict[str, Any]:
     """Fit, print (unless ``--json``) and save the calibration of one device, and its
     report; what was written."""
     if device and not args.json:
@@ -123,6 +126,7 @@ def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunF
         cal = replace(cal, provenance={**cal.provenance, "device_id": device})
     if recorded_options(args):
         cal = replace(cal, provenance={**cal.provenance, "input_options": recorded_options(args)})
+    cal = _fitgates.record(cal, gates)
     scaling = default_scaling(feats)
     per_run = fit_per_run(feats, args.model, estimator=est, scaling=scaling) if len(feats) > 1 \
         else []
@@ -153,7 +157,8 @@ def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunF
             "coefficients_physical": {a: cal.physical_coefficients(a) for a in cal.axes},
             "per_run": {f.name: {a: c.physical_coefficients(a) for a in c.axes}
                         for f, c in zip(feats, per_run, strict=False)},
-            "leave_one_run_out": [s.to_dict() for h in held for s in h.scores]}
+            "leave_one_run_out": [s.to_dict() for h in held for s in h.scores],
+            "quality": [g.to_dict() for g in gates]}
 
 
 def _report(args: argparse.Namespace, cal: Calibration, feats: list[RunFeatures], *,
@@ -235,7 +240,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         _fitrest.print_rest_report(reports, use="the scores")
     zero = zero_option(args)
     removed = [removed_bias(cal, f, zero=zero) for f in feats]
-    scores = [s for f, rb in zip(feats, removed, strict=True) for s in score(cal, f, removed=rb)]
+    scores = _scored([s for f, rb in zip(feats, removed, strict=True)
+                      for s in score(cal, f, removed=rb)], args)
     zeros = [zero_report(f, rb.zero) for f, rb in zip(feats, removed, strict=True)
              if rb.zero is not None]
     effects = {a: list(cal.effect_names(a)) for a in cal.axes}
@@ -263,6 +269,21 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         _report(args, cal, feats, title=f"evaluate: {args.calibration}",
                 calibration_path=str(args.calibration), zero=zero)
     return 0
+
+
+def _scored(scores: list[RunScore], args: argparse.Namespace) -> list[RunScore]:
+    """The scores with rows in them; a note for runs left without any (every row
+    excluded as motion); CalibrationError when nothing is left to score."""
+    empty = sorted({s.run for s in scores if s.raw.n == 0})
+    kept = [s for s in scores if s.raw.n > 0]
+    if not kept:
+        raise CalibrationError(
+            f"{', '.join(args.runs)}: nothing to score with {args.calibration}: no row "
+            f"of any run is at rest (--rest {args.rest}); give runs with the gyro still, "
+            "or --rest all if it was still throughout")
+    if empty:
+        print(f"not scored (no row at rest): {', '.join(empty)}", file=sys.stderr)
+    return kept
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -309,6 +330,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                          "coefficients and leave-one-run-out scores")
     f.add_argument("--report", metavar="DIR",
                    help="also write per-axis figures and report.md to DIR (default: none)")
+    _fitgates.add_force_option(f)
     add_estimator_options(f)
     add_input_options(f)
     _fitrest.add_rest_options(f)

@@ -283,7 +283,7 @@ def score(calibration: Calibration, run: RunFeatures, *, zero: ZeroConfig | None
             raw=ErrorMetrics.of(raw),
             compensated=ErrorMetrics.of(raw - bias),
             truth=None if truth is None else ErrorMetrics.of(bias - truth),
-            clamped_fraction=float(np.mean(clamped)),
+            clamped_fraction=float(np.mean(clamped)) if clamped.size else float("nan"),
         ))
     return out
 
