@@ -115,7 +115,7 @@ def test_flag_bits_are_the_documented_ones() -> None:
         "TEMPERATURE_STALE": 0, "T_CLAMPED": 1, "DELTA_T_CLAMPED": 2, "NO_CALIBRATION": 3,
         "ESTIMATOR_REJECTED": 4, "COUNTER_JUMP": 5, "ESTIMATOR_WARMUP": 6, "RATE_SATURATED": 7,
         "SENSOR_FAULT": 8, "NON_FINITE": 9, "BIAS_INVALID": 10, "T_ON_CLAMPED": 11,
-        "ZERO_PENDING": 12, "ZERO_FAILED": 13,
+        "ZERO_PENDING": 12, "ZERO_FAILED": 13, "ZERO_UNVERIFIED": 14,
     }  # fmt: skip
     assert {f.name: int(f).bit_length() - 1 for f in StatusFlags if f} == expected
     assert [int(k) for k in MessageKind] == [1, 2, 3, 4]

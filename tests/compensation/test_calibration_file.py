@@ -93,10 +93,11 @@ def test_absurd_json_is_a_calibration_error(calibration: Calibration, tmp_path: 
     doc = calibration.to_dict()
     doc["coefficients"]["x"][0] = 10**400  # valid JSON, not a float
     p.write_text(json.dumps(doc))
-    with pytest.raises(CalibrationError, match=r"coefficients.x.*too large"):
+    with pytest.raises(CalibrationError, match=r"field 'coefficients.x\[0\]': an integer of "
+                       r"401 digits \(at most 19 accepted\)"):
         load_calibration(p)
     p.write_text("[" * 100_000 + "]" * 100_000)
-    with pytest.raises(CalibrationError, match=f"{p}"):
+    with pytest.raises(CalibrationError, match=f"{p}: JSON nested 100000 deep"):
         load_calibration(p)
     doc = calibration.to_dict()
     doc["model"]["terms"] = ["T^x", "T", "dT", "T*dT", "1"]

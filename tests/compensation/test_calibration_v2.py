@@ -160,7 +160,7 @@ _broken, _DELETE = broken, DELETE
         ("effects.x.hysteresis.transition_c", _DELETE,
          r"missing field 'effects.x.hysteresis.transition_c'"),
         ("effects.x.warmup.tau_s", "long", r"field 'effects.x.warmup.tau_s': expected a number"),
-        ("effects.x.cubic.t_ref_c", 1e400, r"field 'effects.x.cubic.t_ref_c': not a finite"),
+        ("effects.x.cubic.t_ref_c", 1e400, r"field 'effects.x.cubic.t_ref_c': the number 1e400 overflows a double"),
         ("effects.x.drift.colour", 1.0, r"field 'effects.x.drift.colour': unknown parameter"),
         ("effects.x.creep", {}, r"field 'effects.x.creep': unknown effect"),
         ("effects.x.warmup", [1.0, 2.0], r"field 'effects.x.warmup': expected an object"),

@@ -96,21 +96,67 @@ def test_unusable_samples_do_not_stop_the_deadline() -> None:
 
 
 def test_restart_and_restore() -> None:
+    """A restart that continues the gyro's run (power-on at 1 s, latest saved step at
+    8 s): done is kept, failed stays failed, pending goes on from its start; no zero
+    saved, or one out of bounds, is measured again from now, untrusted."""
     bz = BootZero(CFG)
     assert bz.status == ZeroStatus.OFF and not bz.push(0.0, 0.0, 0.0, 0.0)
-    saved = {"status": "done", "offset_dps": [0.1, 0.2, 0.3], "done_s": 5.0}
-    assert bz.restore(check_saved(saved, "state.json"), 8.0)
+    saved = {"status": "done", "offset_dps": [0.1, 0.2, 0.3], "done_s": 5.0,
+             "start_s": 1.0, "trusted": True, "unverified": False}
+    run = {"power_on_s": 1.0, "saved_time_s": 8.0}
+    assert "kept" in bz.restore(check_saved(saved, "state.json"), 8.5, **run)
     assert bz.status == ZeroStatus.DONE and bz.offset_dps == (0.1, 0.2, 0.3)
-    assert bz.to_dict() == saved
-    assert not bz.restore({**saved, "status": "failed"}, 9.0)  # measured again from 9 s
-    assert bz.status == ZeroStatus.PENDING and bz.start_s == 9.0
-    assert not bz.restore(None, 9.5) and bz.start_s == 9.5
+    assert bz.to_dict() == {**saved, "start_s": None}
+    assert "stays failed" in bz.restore({**saved, "status": "failed"}, 9.0, **run)
+    assert bz.status == ZeroStatus.FAILED and bz.offset_dps == (0.0, 0.0, 0.0)
+    assert not bz.push(200.0, 0.0, 0.0, 0.0) and bz.status == ZeroStatus.FAILED
+    assert "goes on" in bz.restore({**saved, "status": "pending", "start_s": 2.0}, 9.0, **run)
+    assert bz.status == ZeroStatus.PENDING and bz.start_s == 2.0 and bz.trusted
+    assert "measured again" in bz.restore(None, 9.5, **run)
+    assert bz.start_s == 9.5 and not bz.trusted
+    for bad, why in [({"offset_dps": [0.1, 0.6, 0.3]}, "offset_dps[1] = 0.6 °/s is beyond "
+                      "max_offset_dps = 0.5"),
+                     ({"done_s": 9.0}, "done_s = 9.0 s is outside the saved run"),
+                     ({"start_s": 0.5}, "start_s = 0.5 s is outside")]:
+        assert why in bz.restore({**saved, **bad}, 9.5, **run)
+        assert bz.status == ZeroStatus.PENDING and not bz.trusted
     with pytest.raises(CalibrationError, match=r"state.json: field 'zero.offset_dps'"):
         check_saved({**saved, "offset_dps": [0.1, "x", 0.3]}, "state.json")
+    with pytest.raises(CalibrationError, match=r"state.json: field 'zero.unverified'"):
+        check_saved({**saved, "unverified": 1}, "state.json")
     bz.start(10.0)
     assert bz.status == ZeroStatus.PENDING and bz.offset_dps == (0.0, 0.0, 0.0)
     bz.stop()
     assert bz.status == ZeroStatus.OFF
+
+
+def test_untrusted_zero_is_unverified_unless_it_agrees_with_its_reference() -> None:
+    """Residual 0.1 °/s on x from 10 Hz rows: started untrusted with a reference within
+    max_step_dps (0.02) the zero is verified; with one 0.05 away, or none, it is not."""
+    t = np.arange(100) / 10.0
+    for reference, unverified in [((0.11, 0.0, 0.0), False), ((0.05, 0.0, 0.0), True),
+                                  (None, True)]:
+        bz = BootZero(CFG)
+        bz.start(0.0, trusted=False, reference=reference)
+        assert any(bz.push(float(ti), 0.1, 0.0, 0.0) for ti in t)
+        assert bz.status == ZeroStatus.DONE and bz.offset_dps[0] == pytest.approx(0.1)
+        assert bz.unverified is unverified
+    bz = BootZero(CFG)
+    bz.start(0.0)
+    assert any(bz.push(float(ti), 0.1, 0.0, 0.0) for ti in t) and not bz.unverified
+
+
+def test_a_time_jump_while_pending_is_not_a_failure() -> None:
+    """Rows at 10 Hz, then the stream's clock jumps by +1e6 s (or back by 500 s) at 3 s:
+    the deadline (30 s) counts elapsed sensor time, so the zero is still pending right
+    after the jump and is taken 2 s + 4 s of usable rows later."""
+    for jump in (1e6, -500.0):
+        bz = BootZero(CFG)
+        bz.start(0.0)
+        times = [k / 10.0 for k in range(30)] + [3.0 + jump + k / 10.0 for k in range(100)]
+        outcome = [bz.push(ti, 0.1, 0.0, 0.0) for ti in times]
+        assert bz.status == ZeroStatus.DONE and bz.done_s > 3.0 + jump
+        assert outcome.index(True) > 30
 
 
 @pytest.mark.parametrize(("key", "value", "match"), [

@@ -123,24 +123,45 @@ def test_power_on_after_a_silence_measures_a_new_zero(
     np.testing.assert_allclose(z_second - z_first, 0.1, atol=0.01)
 
 
-def test_another_calibration_restarts_the_zero_the_same_keeps_it(
+def test_another_calibration_carries_the_zero_over_the_same_keeps_it(
         short_runs: list[Run], stream_calibration: Calibration) -> None:
+    """A reload never re-measures a zero that was done (the vehicle may be moving):
+    z' = z + b_old − b_new at the current estimate, so the bias removed is continuous
+    at the reload (b_new + z' = b_old + z) and the flags stay clean. A calibration
+    loaded where there was none starts a zero that ends ZERO_UNVERIFIED."""
     run = short_runs[0].slice(0, 300)
     frames = list(run_frames(run, FrameEncoder()))
-    pipe, _ = _stream(stream_calibration, frames[:200])
+    pipe, sink = _stream(stream_calibration, frames[:200])
     zero = pipe.compensation.zero
     assert zero is not None and zero.status == ZeroStatus.DONE
     kept = zero.offset_dps
     pipe.set_calibration(Calibration.from_dict(stream_calibration.to_dict()))  # equal content
     assert zero.status == ZeroStatus.DONE and zero.offset_dps == kept
     assert not pipe.flags & PENDING
-    pipe.set_calibration(make_v2(stream_calibration))  # another model: measured again
-    assert zero.status == ZeroStatus.PENDING and pipe.flags & PENDING
-    for msg in frames[200:]:
-        pipe.process(msg, 1.0e9)
+    last = decode_rate(sink.rates[-1])
+    assert frames[199].arbitration_id == FrameEncoder().layout.rate.frame_id  # last: a rate
+    v2 = make_v2(stream_calibration)
+    pipe.set_calibration(v2)  # another model at the same estimate
     assert zero.status == ZeroStatus.DONE and zero.offset_dps != kept
+    assert not pipe.flags & (PENDING | StatusFlags.ZERO_UNVERIFIED | StatusFlags.ZERO_FAILED)
+    est = pipe.last_estimate
+    assert est is not None
+    b_old = stream_calibration.bias_at(est.temperature_c, est.delta_t_c).bias_dps
+    np.testing.assert_allclose(np.array(last.bias_dps) - [b_old[a] for a in "xyz"], kept,
+                               atol=1e-12)  # the message before: b_old + z
+    pipe.process(frames[201], 1.0e9)  # the next rate frame, same estimate
+    after = decode_rate(sink.rates[-1])
+    np.testing.assert_allclose(after.bias_dps, last.bias_dps, atol=1e-12)
+    assert not after.flags & (PENDING | StatusFlags.ZERO_UNVERIFIED)
     pipe.set_calibration(None)  # nothing removed without a calibration
     assert zero.status == ZeroStatus.OFF and not pipe.flags & (PENDING | StatusFlags.ZERO_FAILED)
+    pipe.set_calibration(stream_calibration)  # none before: a zero the daemon cannot trust
+    assert zero.status == ZeroStatus.PENDING and pipe.flags & PENDING
+    for msg in frames[202:]:
+        pipe.process(msg, 1.0e9)
+    assert zero.status == ZeroStatus.DONE and zero.unverified
+    assert pipe.flags & StatusFlags.ZERO_UNVERIFIED
+    assert decode_state(sink.states[-1]).flags & StatusFlags.ZERO_UNVERIFIED
 
 
 def test_no_rest_window_before_the_deadline_fails(
@@ -274,4 +295,5 @@ def test_saved_state_without_or_with_a_broken_zero_still_restores_the_effects(
     good = {"status": "done", "offset_dps": [0.5, -0.25, 0.0], "done_s": 15.0}
     path.write_text(json.dumps({**base, "zero": good}))
     saved = load(path)
-    assert saved is not None and saved.snapshot.zero == good
+    assert saved is not None and saved.snapshot.zero == {  # an older file: the defaults
+        **good, "start_s": None, "trusted": True, "unverified": False}

@@ -47,6 +47,9 @@ pub mod flags {
     pub const ZERO_PENDING: u64 = 0x1000;
     /// The boot-time zero found no rest window before its deadline.
     pub const ZERO_FAILED: u64 = 0x2000;
+    /// The boot-time zero in use could not be verified as taken at rest (after a restart,
+    /// a first calibration or a clock step): a slow steady turn may be in it.
+    pub const ZERO_UNVERIFIED: u64 = 0x4000;
 }
 
 /// A payload that does not follow the wire format; the text names the message,

@@ -37,6 +37,7 @@ one decoder per receiving thread.
 
 from __future__ import annotations
 
+import math
 import os
 from collections import Counter
 from collections.abc import Mapping
@@ -206,6 +207,14 @@ class FrameDecoder:
             }
             for p in (self.layout.rate, self.layout.temperature)
         ]
+
+    def temperature_range_c(self) -> tuple[float, float] | None:
+        """The temperatures this layout can deliver, °C: the temperature signal's
+        accepted raw range in physical units (the DBC's [minimum, maximum] where it
+        has one); None when unbounded (a float signal without limits)."""
+        f = self.layout.temperature.values[0]
+        ends = sorted((f.raw_min * f.scale + f.offset, f.raw_max * f.scale + f.offset))
+        return (ends[0], ends[1]) if all(math.isfinite(v) for v in ends) else None
 
     def reset(self) -> None:
         """Forget the counter state (e.g. after a bus reconnect); counts are kept."""

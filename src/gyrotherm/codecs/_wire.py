@@ -115,6 +115,13 @@ class StatusFlags(enum.IntFlag):
     #: bit 13: the boot-time zero found no rest window before its deadline: the
     #: switch-on offset stays in the rate until the next power-on.
     ZERO_FAILED = 1 << 13
+    #: bit 14: the boot-time zero in use was measured at a moment the daemon could not
+    #: tell the vehicle was at rest (after a restart that could not restore a zero, a
+    #: calibration loaded where there was none, a clock step or sensor reboot) and it
+    #: does not agree with the previous offset: a steady turn slower than
+    #: ``max_offset_dps`` may be in it. Until the next power-on (docs/operations.md,
+    #: "Boot-time zero").
+    ZERO_UNVERIFIED = 1 << 14
 
 
 class AxisEffects(NamedTuple):

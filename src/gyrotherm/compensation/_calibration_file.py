@@ -9,13 +9,13 @@ and runtime-state blocks are checked by :mod:`._calibration_v2`.
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from gyrotherm._errors import CalibrationError, ConfigError
+from gyrotherm._safefile import decode_utf8, parse_json, read_bounded
 from gyrotherm.compensation._calibration import (
     SCHEMA,
     UNITS,
@@ -34,7 +34,11 @@ from gyrotherm.compensation._calibration_v2 import (
     finite_number as _value,
 )
 from gyrotherm.compensation._models import Scaling, Term, get_model
+from gyrotherm.compensation._plausibility import check_plausible
 from gyrotherm.estimators import EstimatorConfig
+
+#: Largest calibration file read, bytes (a calibration is a few kB).
+MAX_CALIBRATION_BYTES = 4 << 20
 
 
 def load_calibration(path: str | Path) -> Calibration:
@@ -44,28 +48,27 @@ def load_calibration(path: str | Path) -> Calibration:
 
 def read_calibration(path: str | Path) -> tuple[Calibration, str]:
     """The calibration in ``path`` and its id: the first 16 hex digits of the sha256
-    of the very bytes parsed (so the id always names the content loaded)."""
+    of the very bytes parsed (so the id always names the content loaded).
+
+    Only a regular file of at most :data:`MAX_CALIBRATION_BYTES` is read, without
+    blocking (a FIFO, a device or a directory is refused unopened:
+    :mod:`gyrotherm._safefile`); nesting and numbers are bounded before parsing."""
     p = Path(path)
-    try:
-        raw = p.read_bytes()
-    except OSError as exc:
-        raise CalibrationError(f"{p}: cannot read calibration file: {exc}") from exc
+    raw = read_bounded(p, max_bytes=MAX_CALIBRATION_BYTES, what="calibration file",
+                       error=CalibrationError)
+    if raw is None:
+        raise CalibrationError(f"{p}: cannot read calibration file: no such file")
     return parse_calibration(raw, source=str(p)), hashlib.sha256(raw).hexdigest()[:16]
 
 
 def parse_calibration(raw: bytes | str, *, source: str = "<memory>") -> Calibration:
-    """Validate calibration JSON text; CalibrationError names ``source`` and the field."""
-    try:
-        text = raw.decode("utf-8") if isinstance(raw, bytes) else raw
-        data = json.loads(text)
-    except UnicodeDecodeError as exc:
-        raise CalibrationError(f"{source}: not UTF-8 text (byte {exc.start})") from exc
-    except json.JSONDecodeError as exc:
-        raise CalibrationError(
-            f"{source}: line {exc.lineno}: not valid JSON ({exc.msg})"
-        ) from exc
-    except (RecursionError, ValueError) as exc:  # absurd nesting, huge integers
-        raise CalibrationError(f"{source}: unreadable JSON ({exc})") from exc
+    """Validate calibration JSON text; CalibrationError names ``source`` and the field.
+    The text is parsed with :func:`gyrotherm._safefile.parse_json`'s limits (depth,
+    integer digits, finite numbers), and the calibration is checked for physical
+    plausibility (:func:`~gyrotherm.compensation._plausibility.check_plausible`)."""
+    text = (decode_utf8(raw, source=source, error=CalibrationError) if isinstance(raw, bytes)
+            else raw)
+    data = parse_json(text, source=source, error=CalibrationError)
     return parse_data(data, source)
 
 
@@ -161,6 +164,7 @@ def parse_data(data: Any, source: str) -> Calibration:
             cal = replace(cal, effects=parse_effects(_get(data, "effects", dict, source),
                                                      cal.axes, source))
         _check_physical(data, cal, source)
+        check_plausible(cal)
         return cal
     except ConfigError as exc:
         msg = str(exc)

@@ -30,6 +30,20 @@ Limits: the gyro alone cannot tell a constant-rate rotation from an offset.
 A steady turn slower than ``max_offset_dps`` during the window is taken for an
 offset (as ArduPilot's boot calibration would): zero the gyro at rest.
 
+**Trusted or not.** A zero started at a power-on is *trusted*: the vehicle is
+powered on at rest (the operating contract). A zero the daemon has to start at
+another moment (a restart that could not restore one, a calibration loaded where
+there was none, a clock step) may run while the vehicle moves; it is started
+untrusted, optionally with a ``reference`` (the previous offset). When accepted,
+it is **unverified** unless it agrees with the reference within ``max_step_dps``
+on every axis: the daemon then flags ``ZERO_UNVERIFIED`` until the next power-on.
+A **failed** zero stays failed across restarts and reloads until a power-on.
+
+**Time jumps.** A sample whose time is behind the previous one, or more than
+:data:`REBASE_JUMP_S` ahead of it (a time base change of the stream), does not
+count towards the deadline: the start moves with the jump and the open window is
+discarded (no spurious ``FAILED``).
+
 One implementation serves the daemon (:meth:`BootZero.push` per rate frame) and
 offline evaluation (:func:`zero_series` loops over rows with the same object),
 so both give the same z bit for bit on the same samples.
@@ -52,6 +66,8 @@ __all__ = ["BootZero", "ZeroConfig", "ZeroSeries", "ZeroStatus", "check_saved", 
 
 FloatArray = NDArray[np.float64]
 _AXES = ("x", "y", "z")
+#: A step of a sample's time larger than this (or backwards) is a time jump, s.
+REBASE_JUMP_S = 60.0
 
 
 _LIMITS: dict[str, tuple[float, float]] = {
@@ -121,31 +137,72 @@ class BootZero:
         self.start_s = math.nan  # NaN: the start is the next pushed sample
         self.done_s = math.nan  # sensor time of the sample that closed the accepted window
         self.windows_rejected = 0
+        self.trusted = True  # started at a power-on (module docstring)
+        self.unverified = False  # accepted, untrusted, not confirmed by the reference
+        self._reference: tuple[float, float, float] | None = None
+        self._last_s = math.nan  # time of the latest sample pushed or interrupted
         self._open_s = math.nan
         self._sums = [0.0] * 14  # per half h at 7·h: n, Σx, Σy, Σz, Σx², Σy², Σz²
 
-    def start(self, time_s: float = math.nan) -> None:
-        """(Re)start: pending from ``time_s`` (s, sensor time; NaN: the next sample)."""
+    def start(self, time_s: float = math.nan, *, trusted: bool = True,
+              reference: tuple[float, float, float] | None = None) -> None:
+        """(Re)start: pending from ``time_s`` (s, sensor time; NaN: the next sample);
+        ``trusted``: at a power-on; ``reference``: an offset the result should agree
+        with (°/s, only for an untrusted start)."""
         self.status, self.offset_dps = ZeroStatus.PENDING, (0.0, 0.0, 0.0)
         self.start_s, self.done_s, self._open_s = time_s, math.nan, math.nan
+        self.trusted, self.unverified, self._reference = trusted, False, reference
+        self._last_s = math.nan
 
     def stop(self) -> None:
         """Off: nothing removed, nothing measured."""
         self.status, self.offset_dps = ZeroStatus.OFF, (0.0, 0.0, 0.0)
         self.start_s = self.done_s = self._open_s = math.nan
+        self.unverified = False
 
-    def restore(self, saved: Mapping[str, Any] | None, time_s: float) -> bool:
-        """Continue after a restart from :meth:`to_dict`'s output (checked by
-        :func:`check_saved`): a zero that was done keeps its offset (True); otherwise
-        (none saved, pending or failed) it starts again at ``time_s`` (s)."""
-        if saved is None or saved.get("status") != "done":
+    def fail(self) -> None:
+        """Failed (z = 0) until the next :meth:`start`."""
+        self.status, self.offset_dps, self._open_s = ZeroStatus.FAILED, (0.0, 0.0, 0.0), math.nan
+
+    def restore(self, saved: Mapping[str, Any] | None, time_s: float, *,
+                power_on_s: float, saved_time_s: float) -> str:
+        """Continue after a restart (the gyro kept running) from :meth:`to_dict`'s output
+        (checked by :func:`check_saved`), re-checked against this config's bounds: a
+        zero that was done keeps its offset, a failed one stays failed, a pending one
+        goes on from its start (its deadline too). None saved, ``off``, or a field out
+        of bounds: it starts again at ``time_s`` (s) *untrusted*, the vehicle may be
+        moving. Returns what was done, for the journal."""
+        if saved is None or saved.get("status") in (None, "off"):
+            self.start(time_s, trusted=False)
+            return "none saved: measured again now (unverified when taken)"
+        problem = _out_of_bounds(saved, self.config, power_on_s, saved_time_s)
+        if problem:
+            self.start(time_s, trusted=False)
+            return f"saved zero dropped ({problem}): measured again now (unverified when taken)"
+        status = saved["status"]
+        if status == "failed":
             self.start(time_s)
-            return False
+            self.fail()
+            return "failed before the restart: stays failed until the next power-on"
+        if status == "pending":
+            start = saved.get("start_s")
+            self.start(power_on_s if start is None else float(start),
+                       trusted=bool(saved.get("trusted", True)))
+            return f"pending since t = {self.start_s!r} s: goes on"
         x, y, z = (float(v) for v in saved["offset_dps"])
         done = saved.get("done_s")
         self.status, self.offset_dps = ZeroStatus.DONE, (x, y, z)
         self.done_s, self._open_s = math.nan if done is None else float(done), math.nan
-        return True
+        self.unverified = bool(saved.get("unverified", False))
+        return "done: " + ", ".join(f"{v:+.5f}" for v in self.offset_dps) + " °/s kept"
+
+    def _rebase(self, time_s: float) -> None:
+        """Move the start with a time jump (module docstring)."""
+        last = self._last_s
+        if not math.isnan(last) and not (last <= time_s <= last + REBASE_JUMP_S):
+            self.start_s += time_s - last
+            self._open_s = math.nan
+        self._last_s = time_s
 
     def interrupt(self, time_s: float) -> bool:
         """An unusable sample at ``time_s`` (s): the open window is discarded. The
@@ -156,6 +213,7 @@ class BootZero:
         self._open_s = math.nan
         if math.isnan(self.start_s):
             self.start_s = time_s
+        self._rebase(time_s)
         if time_s - self.start_s > self.config.deadline_s:
             self.status = ZeroStatus.FAILED
             return True
@@ -168,6 +226,7 @@ class BootZero:
             return False
         if math.isnan(self.start_s):
             self.start_s = time_s
+        self._rebase(time_s)
         since = time_s - self.start_s
         c = self.config
         if since > c.deadline_s:
@@ -217,12 +276,34 @@ class BootZero:
             offset.append(mean)
         self.status, self.done_s, self._open_s = ZeroStatus.DONE, time_s, math.nan
         self.offset_dps = (offset[0], offset[1], offset[2])
+        ref = self._reference
+        self.unverified = not self.trusted and (ref is None or any(
+            abs(o - r) > c.max_step_dps for o, r in zip(self.offset_dps, ref, strict=True)))
         return True
 
     def to_dict(self) -> dict[str, Any]:
-        """What a restarted daemon needs (``status``, ``offset_dps``, ``done_s``)."""
+        """What a restarted daemon needs (``status``, ``offset_dps``, ``done_s``,
+        ``start_s``, ``trusted``, ``unverified``)."""
         return {"status": self.status.name.lower(), "offset_dps": list(self.offset_dps),
-                "done_s": None if math.isnan(self.done_s) else self.done_s}
+                "done_s": None if math.isnan(self.done_s) else self.done_s,
+                "start_s": None if math.isnan(self.start_s) else self.start_s,
+                "trusted": self.trusted, "unverified": self.unverified}
+
+
+def _out_of_bounds(saved: Mapping[str, Any], config: ZeroConfig, power_on_s: float,
+                   time_s: float) -> str:
+    """Why a saved zero cannot be taken back (empty: it can): its offset beyond this
+    config's ``max_offset_dps``, or its times outside [power-on, latest saved step]."""
+    for k, v in enumerate(saved["offset_dps"]):
+        if abs(v) > config.max_offset_dps:
+            return (f"offset_dps[{k}] = {v!r} °/s is beyond max_offset_dps = "
+                    f"{config.max_offset_dps:g} °/s")
+    for key in ("done_s", "start_s"):
+        v = saved.get(key)
+        if v is not None and not power_on_s <= v <= time_s:
+            return (f"{key} = {v!r} s is outside the saved run [power-on {power_on_s!r} s, "
+                    f"latest step {time_s!r} s]")
+    return ""
 
 
 def check_saved(z: Any, source: str) -> dict[str, Any]:
@@ -240,13 +321,21 @@ def check_saved(z: Any, source: str) -> dict[str, Any]:
             for v in off)):
         raise CalibrationError(f"{where}.offset_dps': expected 3 finite numbers (°/s), "
                                f"got {off!r:.60}")
-    done = z.get("done_s")
-    if done is not None and (isinstance(done, bool) or not isinstance(done, int | float)
-                             or not math.isfinite(done)):
-        raise CalibrationError(f"{where}.done_s': expected a finite number or null, "
-                               f"got {done!r:.60}")
-    return {"status": z["status"], "offset_dps": [float(v) for v in off],
-            "done_s": None if done is None else float(done)}
+    times = {}
+    for key in ("done_s", "start_s"):
+        v = z.get(key)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)
+                              or not math.isfinite(v)):
+            raise CalibrationError(f"{where}.{key}': expected a finite number or null, "
+                                   f"got {v!r:.60}")
+        times[key] = None if v is None else float(v)
+    flags = {}
+    for key in ("trusted", "unverified"):
+        v = z.get(key, key == "trusted")
+        if not isinstance(v, bool):
+            raise CalibrationError(f"{where}.{key}': expected true or false, got {v!r:.60}")
+        flags[key] = v
+    return {"status": z["status"], "offset_dps": [float(v) for v in off], **times, **flags}
 
 
 @dataclass(frozen=True)

@@ -27,12 +27,20 @@ its states start at the current estimate (T_s = T, h = 0). t_on is the daemon's
 and always continues. The new compensator is stepped once at the current
 estimate (with a taken-over state that step has dt = 0, which changes nothing).
 
-**Boot-time zero** (optional, :mod:`gyrotherm.compensation._zero`): started at
-each power-on, measured by the pipeline on the rate frames. A restored state
-(the gyro kept running) keeps a zero that was done; another calibration starts
-it again at the next rate frame (z was measured against the old model's bias,
-so it is not valid for the new one); no calibration stops it (nothing is
-removed without one). The same calibration keeps it.
+**Boot-time zero** (optional, :mod:`gyrotherm.compensation._zero`): started
+(trusted) at each power-on, measured by the pipeline on the rate frames. A
+restored state (the gyro kept running) keeps a zero that was done, a failed one
+stays failed, a pending one goes on (:meth:`BootZero.restore`, bounds re-checked).
+The same calibration keeps it. **Another calibration never re-measures a zero
+that was done** (the vehicle may be moving at a reload): the offset is carried
+over, z' = z + b_old − b_new, both biases at the same (current) estimate — exact
+when the old model's error did not change between the zero's window and the
+reload. A carried offset beyond ``max_offset_dps`` (the models disagree too much)
+starts an untrusted zero instead. A failed zero stays failed, a pending one goes
+on; only a calibration loaded where there was none starts an untrusted zero. No
+calibration stops it (nothing is removed without one). A time-base change (a
+clock step or a sensor reboot: the daemon cannot tell) starts an untrusted zero
+with the previous offset as its reference.
 """
 
 from __future__ import annotations
@@ -42,15 +50,19 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from gyrotherm._errors import CalibrationError
 from gyrotherm.codecs._wire import AxisEffects, StatusFlags, ZeroState
 from gyrotherm.compensation import Calibration, Compensator
 from gyrotherm.compensation._effects_state import EffectFlags
-from gyrotherm.compensation._zero import BootZero, ZeroConfig
+from gyrotherm.compensation._zero import BootZero, ZeroConfig, ZeroStatus
+from gyrotherm.daemon._restore import check_effects_state, check_times
 
 log = logging.getLogger("gyrotherm.daemon")
 
 #: Default sensor silence after which the next temperature frame is a power-on, s.
 POWER_ON_GAP_S = 30.0
+#: Temperatures a sensor can report when nothing else is known (no DBC limits), °C.
+DEFAULT_TEMPERATURE_RANGE_C = (-60.0, 150.0)
 _ZERO = (0.0, 0.0, 0.0)
 _T, _DT = int(EffectFlags.T_CLAMPED), int(EffectFlags.DT_CLAMPED)
 _T_ON, _SKIPPED = int(EffectFlags.T_ON_CLAMPED), int(EffectFlags.SKIPPED)
@@ -64,9 +76,12 @@ class EffectsSnapshot:
 
     power_on_s: float
     time_s: float
-    state: dict[str, Any]
+    state: dict[str, Any] | None
+    """None: the effects state was dropped (out of bounds); the effects start afresh."""
     zero: dict[str, Any] | None = field(default=None)
     """:meth:`BootZero.to_dict` when a zero is configured, else None."""
+    source: str = "saved effects state"
+    """Where it was read (for the journal)."""
 
 
 def _same_kinds(a: Calibration, b: Calibration) -> bool:
@@ -77,8 +92,12 @@ class Compensation:
     """Bias and bias flags of the latest estimate; see the module docstring."""
 
     def __init__(self, calibration: Calibration | None, power_on_gap_s: float,
-                 zero: ZeroConfig | None = None) -> None:
+                 zero: ZeroConfig | None = None, *,
+                 temperature_range_c: tuple[float, float] = DEFAULT_TEMPERATURE_RANGE_C
+                 ) -> None:
         self.power_on_gap_s = power_on_gap_s
+        self.temperature_range_c = temperature_range_c
+        self._carry: tuple[float, float, float] | None = None  # b_old of a zero to carry
         self.zero = None if zero is None else BootZero(zero)
         self.calibration: Calibration | None = None
         self.compensator: Compensator | None = None
@@ -93,12 +112,20 @@ class Compensation:
         if calibration == self.calibration:
             return  # the same model: its state continues, nothing is stepped again
         old = self.compensator
-        self.calibration, self._cached, self._restore = calibration, None, None
-        if self.zero is not None:
+        old_bias = self._cached
+        self.calibration, self._cached, self._restore, self._carry = calibration, None, None, None
+        z = self.zero
+        if z is not None:
             if calibration is None:
-                self.zero.stop()
-            else:
-                self.zero.start()  # at the next rate frame (or the power-on)
+                z.stop()
+            elif z.status == ZeroStatus.OFF:  # at the next rate frame; after the power-on
+                z.start(trusted=math.isnan(self.power_on_s))  # the vehicle may be moving
+            elif z.status == ZeroStatus.DONE:
+                if old_bias is not None and not old_bias[1] & StatusFlags.BIAS_INVALID:
+                    self._carry = old_bias[0]  # carried at the next valid step
+                else:
+                    z.start(trusted=False, reference=z.offset_dps)
+            # PENDING goes on (its window restarts on the new residuals); FAILED stays
         if calibration is None:
             self.compensator = None
         elif old is not None and _same_kinds(old.calibration, calibration):
@@ -109,41 +136,79 @@ class Compensation:
             if old is not None:
                 log.info("calibration changed: other effects, their state starts now")
 
-    def restore_at_power_on(self, snapshot: EffectsSnapshot) -> None:
-        """Continue from ``snapshot`` if the first temperature frame continues it."""
-        self._restore = snapshot
+    def _carry_zero(self, new_bias: tuple[float, float, float]) -> None:
+        """z' = z + b_old − b_new (module docstring), at the first valid new bias."""
+        z, old = self.zero, self._carry
+        self._carry = None
+        if z is None or old is None or z.status != ZeroStatus.DONE:
+            return
+        carried = tuple(o + b0 - b1 for o, b0, b1 in zip(z.offset_dps, old, new_bias,
+                                                         strict=True))
+        limit = z.config.max_offset_dps
+        if all(abs(v) <= limit for v in carried):
+            z.offset_dps = (carried[0], carried[1], carried[2])
+            log.info("boot-time zero carried over to the new calibration (not measured "
+                     "again): x %+.5f, y %+.5f, z %+.5f °/s", *carried)
+        else:
+            log.warning("boot-time zero cannot be carried over (%s °/s beyond max_offset_dps "
+                        "= %g °/s): measured again from now, flagged ZERO_UNVERIFIED when "
+                        "taken", ", ".join(f"{v:+.4g}" for v in carried), limit)
+            z.start(trusted=False, reference=z.offset_dps)
 
-    def power_on(self, time_s: float, *, first: bool) -> None:
+    def restore_at_power_on(self, snapshot: EffectsSnapshot) -> None:
+        """Continue from ``snapshot`` if the first temperature frame continues it; its
+        times and effects state are checked against their bounds first
+        (:mod:`gyrotherm.daemon._restore`): what is out of bounds is dropped, with a
+        warning, and never saved again."""
+        problem = check_times(snapshot.power_on_s, snapshot.time_s)
+        if problem:
+            log.warning("%s ignored, starting from power-on: %s", snapshot.source, problem)
+            return
+        state = snapshot.state
+        if state is not None and self.compensator is not None:
+            try:
+                check_effects_state(state, self.compensator.calibration,
+                                    power_on_s=snapshot.power_on_s, time_s=snapshot.time_s,
+                                    temperature_range_c=self.temperature_range_c,
+                                    source=snapshot.source)
+            except CalibrationError as exc:
+                log.warning("effects state dropped (the effects start afresh; power-on time "
+                            "and zero still restored): %s", exc)
+                state = None
+        self._restore = EffectsSnapshot(snapshot.power_on_s, snapshot.time_s, state,
+                                        snapshot.zero, snapshot.source)
+
+    def power_on(self, time_s: float, *, first: bool, time_base: bool = False) -> None:
         """The gyro powered on at ``time_s`` (``first``: the daemon's first frame,
-        where a saved state may be restored instead)."""
+        where a saved state may be restored instead; ``time_base``: a time-base change,
+        which may be a clock step as well as a reboot: the zero starts untrusted)."""
         snap, self._restore = self._restore, None
         if (first and snap is not None and self.compensator is not None
                 and 0.0 <= time_s - snap.time_s <= self.power_on_gap_s):
-            try:
-                self.compensator = Compensator.load_state(
-                    self.compensator.calibration, snap.state, source="saved effects state")
-            except Exception as exc:  # validated at load; defensive
-                log.warning("saved effects state not restored: %s", exc)
-            else:
-                self.power_on_s, self.time_s, self._cached = snap.power_on_s, snap.time_s, None
-                log.info("effects state restored: power-on at %r s, t_on %.1f s", snap.power_on_s,
-                         time_s - snap.power_on_s)
-                self._restore_zero(snap, time_s)
-                return
-        elif first and snap is not None:
+            cal = self.compensator.calibration
+            self.compensator = (cal.compensator() if snap.state is None else
+                                Compensator.load_state(cal, snap.state, source=snap.source))
+            self.power_on_s, self.time_s, self._cached = snap.power_on_s, snap.time_s, None
+            log.info("effects state restored: power-on at %r s, t_on %.1f s%s", snap.power_on_s,
+                     time_s - snap.power_on_s,
+                     "" if snap.state is not None else " (effects state dropped)")
+            if self.zero is not None:
+                log.info("boot-time zero after the restart: %s", self.zero.restore(
+                    snap.zero, time_s, power_on_s=snap.power_on_s, saved_time_s=snap.time_s))
+            return
+        if first and snap is not None:
             log.info("saved effects state not restored: first frame at %r s does not continue "
                      "%r s within %g s; power-on now", time_s, snap.time_s, self.power_on_gap_s)
-        self.power_on_s, self._cached = time_s, None
+        self.power_on_s, self._cached, self._carry = time_s, None, None
         if self.compensator is not None:
             self.compensator.reset()
-            if self.zero is not None:
-                self.zero.start(time_s)
-
-    def _restore_zero(self, snap: EffectsSnapshot, time_s: float) -> None:
-        z = self.zero  # pending or failed before the restart: it starts again now
-        if z is not None and z.restore(snap.zero, time_s):
-            log.info("boot-time zero restored: %s °/s",
-                     ", ".join(f"{v:+.5f}" for v in z.offset_dps))
+            z = self.zero
+            if z is not None:
+                if time_base:
+                    z.start(time_s, trusted=False,
+                            reference=z.offset_dps if z.status == ZeroStatus.DONE else None)
+                else:
+                    z.start(time_s)
 
     def snapshot(self) -> EffectsSnapshot | None:
         """The state to persist, None before the first step."""
@@ -180,6 +245,8 @@ class Compensation:
         else:
             bias, flags = _ZERO, StatusFlags.BIAS_INVALID
         self._cached = (bias, flags)
+        if self._carry is not None and valid:
+            self._carry_zero(bias)
         return self._cached
 
     def zero_state(self) -> ZeroState | None:

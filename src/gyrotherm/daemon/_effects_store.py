@@ -14,11 +14,15 @@ that continues the gyro's run keep a zero that was done, instead of needing the
 vehicle at rest again; it is saved with any calibration, with or without effects.
 
 ``power_on_s`` and ``time_s`` (the latest compensator step) are on the sensor's
-clock, s. The daemon restores it only for the same vehicle, sensor and
-calibration id, and only when its first temperature frame continues ``time_s``
-within ``power_on_gap_s`` (:mod:`gyrotherm.daemon._compensation`); anything
-else starts fresh. A file that cannot be read or is malformed is logged and
-ignored (it is only an optimisation of the start), never fatal.
+clock, s. The zero's ``start_s`` (s), ``trusted`` and ``unverified`` were added
+later; a file without them reads as a trusted zero started at the power-on. The
+daemon restores it only for the same vehicle, sensor and calibration id, and only
+when its first temperature frame continues ``time_s`` within ``power_on_gap_s``
+(:mod:`gyrotherm.daemon._compensation`), and only the parts within their bounds
+(:mod:`gyrotherm.daemon._restore`); anything else starts fresh. A file that
+cannot be read, is not a regular file of bounded size, or is malformed is logged
+(one line naming the file, the field and the problem) and ignored: it is only an
+optimisation of the start, never fatal.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from gyrotherm._errors import CalibrationError
+from gyrotherm._safefile import read_json_file
 from gyrotherm.compensation._zero import check_saved
 from gyrotherm.daemon._compensation import Compensation, EffectsSnapshot
 
@@ -40,6 +45,8 @@ log = logging.getLogger("gyrotherm.daemon")
 
 SCHEMA = "gyrotherm.effects-state"
 VERSION = 1
+#: Largest state file read, bytes (one is about 2 kB).
+MAX_STATE_BYTES = 256 * 1024
 #: Seconds between two saves from the housekeeping (and one at shutdown).
 SAVE_PERIOD_S = 5.0
 
@@ -88,33 +95,27 @@ def _field(doc: dict[str, Any], key: str, kind: type | tuple[type, ...], want: s
 
 def load(path: Path) -> SavedEffects | None:
     """The saved state, None when there is no file; CalibrationError (naming the file
-    and field) when it is unreadable or malformed. The compensator state itself is
-    validated against the calibration when it is restored."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
+    and field) when it is unreadable or malformed. Only a regular file of at most
+    :data:`MAX_STATE_BYTES` is read, without blocking, and parsed with bounded depth
+    and numbers (:mod:`gyrotherm._safefile`). What the values mean (times, the
+    compensator state, the zero's offset) is checked when it is restored
+    (:mod:`gyrotherm.daemon._restore`)."""
+    doc = read_json_file(path, what="effects state", error=CalibrationError,
+                         max_bytes=MAX_STATE_BYTES)
+    if doc is None:
         return None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CalibrationError(f"{path}: cannot read the effects state: {exc}") from exc
-    try:
-        doc = json.loads(text)
-    except ValueError as exc:
-        raise CalibrationError(f"{path}: not valid JSON: {exc}") from exc
     src = str(path)
     if not isinstance(doc, dict) or doc.get("schema") != SCHEMA or doc.get("version") != VERSION:
         raise CalibrationError(f"{src}: expected schema {SCHEMA!r} version {VERSION}")
     times = {}
     for key in ("power_on_s", "time_s"):
-        v = _field(doc, key, (int, float), "a number", src)
-        if not math.isfinite(v):
-            raise CalibrationError(f"{src}: field {key!r}: not finite ({v!r})")
-        times[key] = float(v)
+        times[key] = float(_field(doc, key, (int, float), "a number", src))
     return SavedEffects(_field(doc, "vehicle", str, "a string", src),
                         _field(doc, "sensor", str, "a string", src),
                         _field(doc, "calibration_id", str, "a string", src),
                         EffectsSnapshot(times["power_on_s"], times["time_s"],
                                         _field(doc, "compensator", dict, "an object", src),
-                                        _zero_or_none(doc, src)))
+                                        _zero_or_none(doc, src), src))
 
 
 def _zero_or_none(doc: dict[str, Any], src: str) -> dict[str, Any] | None:

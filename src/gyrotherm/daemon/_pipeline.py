@@ -58,7 +58,11 @@ from gyrotherm.daemon._accounting import (
     Counters,
     Sink,
 )
-from gyrotherm.daemon._compensation import POWER_ON_GAP_S, Compensation
+from gyrotherm.daemon._compensation import (
+    DEFAULT_TEMPERATURE_RANGE_C,
+    POWER_ON_GAP_S,
+    Compensation,
+)
 from gyrotherm.daemon._timewindow import (
     BAD_TIMESTAMP,
     MAX_ABS_TIME_S,
@@ -72,6 +76,8 @@ log = logging.getLogger("gyrotherm.daemon")
 
 #: Temperature readings fused before the estimate counts as converged.
 WARMUP_UPDATES = 20
+#: Margin around the DBC's temperature range for restored temperatures, °C.
+SENSOR_RANGE_MARGIN_C = 10.0
 _ZERO = (0.0, 0.0, 0.0)
 #: Rate frames that cannot count towards the boot-time zero.
 _ZERO_UNUSABLE = int(StatusFlags.TEMPERATURE_STALE | StatusFlags.BIAS_INVALID
@@ -114,7 +120,14 @@ class Pipeline(TimeWindow):
             raise ConfigError(f"power_on_gap_s = {power_on_gap_s!r}: must be a positive "
                               "number of seconds")
         self._power_on_gap_s = float(power_on_gap_s)
-        self._compensation = Compensation(None, self._power_on_gap_s, zero)
+        dbc = decoder.temperature_range_c()
+        self._compensation = Compensation(
+            None, self._power_on_gap_s, zero,
+            temperature_range_c=DEFAULT_TEMPERATURE_RANGE_C if dbc is None else (
+                dbc[0] - SENSOR_RANGE_MARGIN_C, dbc[1] + SENSOR_RANGE_MARGIN_C))
+        # a power-on taken on one stream, not to be taken again when the other stream's
+        # first frame after it shows the same silence or time base change
+        self._power_on_waits_for: str | None = None
         self._zeroing = False  # a boot-time zero is pending: rate frames feed it
         self._decoder = decoder
         self._check_counters = check_counters
@@ -182,13 +195,13 @@ class Pipeline(TimeWindow):
                 t = result.time_s
                 w = self._max_jump_s
                 d = t - self._rate_ref_s
-                if (-w <= d <= w or 0.0 < d <= w + receive_time_s - self._rate_rx_s
-                        or self._rate_time_base(t)):  # NaN: False
+                base = not (-w <= d <= w or 0.0 < d <= w + receive_time_s - self._rate_rx_s)
+                if not base or self._rate_time_base(t):  # NaN: a time base (or a drop)
                     if t > self._rate_ref_s:
                         self._rate_ref_s = t
                     self._rate_rx_s = receive_time_s
                     self._rate_run_n = 0
-                    self._on_rate(result, receive_time_s)  # type: ignore[arg-type]
+                    self._on_rate(result, receive_time_s, base)  # type: ignore[arg-type]
                 else:
                     self._drops[BAD_TIMESTAMP] += 1
                     counter = result.counter  # type: ignore[union-attr]
@@ -206,9 +219,22 @@ class Pipeline(TimeWindow):
                 log.exception("frame %d could not be processed (%d so far); "
                               "dropped as internal_error", self._received, n)
 
-    def _on_rate(self, s: RateSample, receive_time_s: float) -> None:
+    def _on_rate(self, s: RateSample, receive_time_s: float, base: bool) -> None:
         t = s.time_s
+        prev = self.last_sensor_time_s
         self.last_sensor_time_s = t
+        if self._power_on_waits_for == "rate":  # taken on the temperature stream already
+            self._power_on_waits_for = None
+        elif prev is not None and base:
+            self._rate_power_on(t, f"rate frames: time base changed from {prev!r} s",
+                                time_base=True)
+        elif (prev is not None and t - prev > self._power_on_gap_s
+              and t - self._last_temperature_s > self._power_on_gap_s
+              and self._last_temperature_s > -math.inf):
+            self._rate_power_on(t, f"both streams silent for "
+                                f"{t - max(prev, self._last_temperature_s):.1f} s (> "
+                                f"power_on_gap_s = {self._power_on_gap_s:g} s), a rate frame "
+                                "first", time_base=False)
         flags = self._flags
         if t - self._last_temperature_s > self._estimator.config.stale_after_s:
             flags |= StatusFlags.TEMPERATURE_STALE
@@ -242,6 +268,20 @@ class Pipeline(TimeWindow):
         else:  # False: nobody subscribed; a string: the sink's drop reason
             self._drops[NO_SUBSCRIBER if routed is False else routed] += 1
 
+    def _rate_power_on(self, t: float, why: str, *, time_base: bool) -> None:
+        """A power-on seen first on the rate stream (``why``): both streams were silent
+        longer than ``power_on_gap_s``, or the rate stream's time base changed (a clock
+        step or a reboot: the zero starts untrusted). The estimate from before is
+        dropped (rates go out uncorrected, ``TEMPERATURE_STALE | ESTIMATOR_WARMUP``, as
+        at start, until the first temperature frame) and the zero starts again; the
+        temperature stream's matching silence or time base change is not a second one."""
+        log.info("%s: power-on at t = %r s", why, t)
+        self._power_on_waits_for = "temperature"
+        self._estimator.reset()
+        self.last_estimate = None
+        self._compensation.power_on(t, first=False, time_base=time_base)
+        self._refresh_bias(step=False)
+
     def _on_temperature(self, s: TemperatureSample, receive_time_s: float) -> None:
         t = s.time_s
         last = self._last_temperature_s
@@ -260,14 +300,22 @@ class Pipeline(TimeWindow):
                 log.warning("temperature frames: time base changed from %r s to %r s "
                             "(%d consecutive frames); estimator restarted", last, t, n)
                 self._estimator.reset()
-            self._compensation.power_on(t, first=first)  # a new time base: power-on
+            if self._power_on_waits_for == "temperature":
+                pass  # the power-on was taken on the rate stream
+            else:  # a new time base: power-on (a clock step or a reboot: untrusted zero)
+                self._compensation.power_on(t, first=first, time_base=not first)
+                self._power_on_waits_for = None if first else "rate"
         elif t - last > self._power_on_gap_s:  # a silence longer than the gap: power-on,
             rate_t = self.last_sensor_time_s  # unless the rate frames kept coming
-            if rate_t is not None and t - rate_t <= self._power_on_gap_s:
+            if self._power_on_waits_for == "temperature":
+                pass  # the power-on was taken at the first rate frame after the silence
+            elif rate_t is not None and t - rate_t <= self._power_on_gap_s:
                 log.warning("temperature frames silent for %.1f s while rate frames kept "
                             "coming: not a power-on (effects and zero continue)", t - last)
             else:
                 self._compensation.power_on(t, first=False)
+        if self._power_on_waits_for == "temperature":
+            self._power_on_waits_for = None
         self._temperature_run_n = 0
         self._temperature_rx_s = receive_time_s
         self._temperature_dropping = False
@@ -310,6 +358,8 @@ class Pipeline(TimeWindow):
             flags |= StatusFlags.ZERO_FAILED
         elif (status == ZeroStatus.DONE and zero is not None and modelled
               and not flags & StatusFlags.BIAS_INVALID):
+            if zero.unverified:
+                flags |= StatusFlags.ZERO_UNVERIFIED
             z0, z1, z2 = zero.offset_dps
             b0, b1, b2 = self._bias
             self._bias = (b0 + z0, b1 + z1, b2 + z2)
