@@ -193,8 +193,10 @@ class Compensation:
                      time_s - snap.power_on_s,
                      "" if snap.state is not None else " (effects state dropped)")
             if self.zero is not None:
-                log.info("boot-time zero after the restart: %s", self.zero.restore(
-                    snap.zero, time_s, power_on_s=snap.power_on_s, saved_time_s=snap.time_s))
+                what = self.zero.restore(snap.zero, time_s, power_on_s=snap.power_on_s,
+                                         saved_time_s=snap.time_s)
+                log.log(logging.WARNING if "dropped" in what else logging.INFO,
+                        "boot-time zero after the restart (%s): %s", snap.source, what)
             return
         if first and snap is not None:
             log.info("saved effects state not restored: first frame at %r s does not continue "

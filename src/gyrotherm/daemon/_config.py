@@ -9,6 +9,8 @@ Example (every key; relative paths are relative to the config file)::
     state_dir = "/var/lib/gyrotherm"  # optional: keep the effects' state across restarts
     power_on_gap_s = 30.0             # sensor silence after which the gyro counts as
                                       # powered on again (t_on = 0), s
+    device_id = "2490378"             # optional: the IMU the calibration must be for
+    device_mismatch = "refuse"        # refuse | warn (with device_id)
 
     [can]
     interface = "socketcan"           # socketcan | socketcand | virtual
@@ -66,6 +68,11 @@ when the first frame continues its time within ``power_on_gap_s``
 each power-on the daemon measures the switch-on offset the calibration cannot
 know over ``window_s`` at rest, and removes it with the calibration's bias.
 Only with a calibration; the vehicle must be at rest after power-on.
+
+``device_id`` (default: none, nothing compared) is the IMU this sensor is (the
+``device_id`` that ``fit`` records in a calibration's provenance); a calibration
+recording another device is refused at start and on reload, or only logged with
+``device_mismatch = "warn"`` (:mod:`gyrotherm.daemon._calload`).
 
 Errors are :class:`gyrotherm.ConfigError` naming the file and the key.
 """
@@ -129,6 +136,8 @@ class DaemonConfig:
     state_dir: Path | None = None
     power_on_gap_s: float = 30.0
     zero: ZeroConfig | None = None
+    device_id: str | None = None
+    device_mismatch: str = "refuse"
     source: str = "<memory>"
 
 
@@ -172,7 +181,8 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
     """Validate a parsed TOML document."""
     base = base_dir or Path.cwd()
     _unknown(data, {"vehicle", "sensor", "calibration", "health_period_s", "can", "estimator",
-                    "zenoh", "state_dir", "power_on_gap_s", "zero"}, source)
+                    "zenoh", "state_dir", "power_on_gap_s", "zero", "device_id",
+                    "device_mismatch"}, source)
     vehicle = _take(data, "vehicle", str, source, None)
     sensor = _take(data, "sensor", str, source, None)
     if vehicle is None or sensor is None:
@@ -189,6 +199,10 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
         raise ConfigError(f"{source}: state_dir = {state_dir!r}: must name a directory")
     gap = _bounded(_take(data, "power_on_gap_s", (int, float), source, 30.0), 1.0, 3600.0,
                    f"{source}: power_on_gap_s")
+    device_id = _take(data, "device_id", str, source, None)
+    mismatch = _take(data, "device_mismatch", str, source, "refuse")
+    if mismatch not in ("refuse", "warn"):
+        raise ConfigError(f"{source}: device_mismatch {mismatch!r} is not 'refuse' or 'warn'")
 
     where = f"{source}: [can]"
     c = _table(data, "can", source)
@@ -275,6 +289,8 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
         state_dir=None if state_dir is None else _path(base, state_dir),
         power_on_gap_s=gap,
         zero=zero,
+        device_id=device_id,
+        device_mismatch=mismatch,
         source=source,
     )
 

@@ -39,6 +39,7 @@ import signal
 import threading
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from types import FrameType
 from typing import Any
 
@@ -54,9 +55,10 @@ from gyrotherm.codecs._wire import (
     encode_calibration_info,
     encode_health,
 )
-from gyrotherm.compensation import Calibration, read_calibration
+from gyrotherm.compensation import Calibration
 from gyrotherm.daemon._attempt import close_session, open_session
 from gyrotherm.daemon._buskeeper import BusKeeper
+from gyrotherm.daemon._calload import load_daemon_calibration
 from gyrotherm.daemon._config import DaemonConfig
 from gyrotherm.daemon._effects_store import EffectsKeeper
 from gyrotherm.daemon._pipeline import Counters, Pipeline
@@ -104,7 +106,7 @@ class Daemon:
         self._keeper = BusKeeper(config.can, self._stopping, self._notifier.status)
         self.effects_keeper = EffectsKeeper(config.state_dir, config.vehicle, config.sensor)
         if config.calibration is not None:
-            self._calibration, self._calibration_id = read_calibration(config.calibration)
+            self._calibration, self._calibration_id = self._read_calibration(config.calibration)
         # What the queryable answers, replaced whole by the loop thread (never mutated):
         # zenoh calls _on_query on its own thread.
         self._snapshot = CalibrationInfo(self._calibration_id, self._calibration_dict(), None)
@@ -290,7 +292,7 @@ class Daemon:
             log.warning("SIGHUP: no calibration file configured; nothing to reload")
         else:
             try:
-                cal, cid = read_calibration(path)
+                cal, cid = self._read_calibration(path)
                 pipeline.set_calibration(cal)
             except Exception as exc:  # a bad file must never stop the daemon
                 self.reload_failures += 1
@@ -303,6 +305,11 @@ class Daemon:
                 self._snapshot = CalibrationInfo(cid, self._calibration_dict(),
                                                  self._snapshot.health)
         self._notifier.ready(status=self._status_line())
+
+    def _read_calibration(self, path: Path) -> tuple[Calibration, str]:
+        cfg = self.config
+        return load_daemon_calibration(path, device_id=cfg.device_id,
+                                       device_mismatch=cfg.device_mismatch)
 
     def _save_effects(self, pipeline: Pipeline, *, force: bool = False) -> None:
         self.effects_keeper.save(pipeline.compensation, self._calibration_id,
