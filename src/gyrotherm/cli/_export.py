@@ -91,7 +91,9 @@ def _of_device(cal: Calibration, runs: list[Run], what: str) -> list[Run]:
 
 
 def _rest_rows(run: Run, mode: str) -> np.ndarray:
-    return np.ones(len(run), dtype=bool) if mode == "all" else rest_of_run(run).rest
+    # a run too short for rest detection is used whole, as fit does (with its note)
+    return np.ones(len(run), dtype=bool) if mode == "all" else \
+        rest_of_run(run, short="keep").rest
 
 
 MIN_CUBIC_ROWS = 8

@@ -14,14 +14,15 @@ from __future__ import annotations
 
 import argparse
 import re
+import sys
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from gyrotherm._errors import ConfigError
+from gyrotherm._errors import CalibrationError, ConfigError
 from gyrotherm.codecs import Run
-from gyrotherm.compensation import RunFeatures
+from gyrotherm.compensation import RunFeatures, RunScore
 from gyrotherm.compensation._rest import RestConfig, RestReport, rest_of_run
 
 DEVICE_KEY = "device_id"
@@ -121,8 +122,44 @@ def device_groups(runs: Sequence[Run],
     return groups
 
 
+def scored_at_rest(scores: list[RunScore], args: argparse.Namespace) -> list[RunScore]:
+    """The scores with rows in them; a note for runs left without any (every row
+    excluded as motion); CalibrationError when nothing is left to score."""
+    empty = sorted({s.run for s in scores if s.raw.n == 0})
+    kept = [s for s in scores if s.raw.n > 0]
+    if not kept:
+        raise CalibrationError(
+            f"{', '.join(args.runs)}: nothing to score with {args.calibration}: no row "
+            f"of any run is at rest (--rest {args.rest}); give runs with the gyro still, "
+            "or --rest all if it was still throughout")
+    if empty:
+        print(f"not scored (no row at rest): {', '.join(empty)}", file=sys.stderr)
+    return kept
+
+
+def drop_restless(feats: list[RunFeatures], *, file: Any = None) -> list[RunFeatures]:
+    """``feats`` less the runs with no row at rest (a note for each): they cannot be
+    fitted alone nor scored left out. All of them when every run is such (the quality
+    gate ``rows`` then refuses the device, naming the count)."""
+    restless = [f.rest is not None and not f.rest.any() for f in feats]
+    if all(restless):
+        return feats
+    for f, gone in zip(feats, restless, strict=True):
+        if gone:
+            print(f"Rest detection: {f.name}: no row at rest, left out of the fit", file=file)
+    return [f for f, gone in zip(feats, restless, strict=True) if not gone]
+
+
 def safe_device_name(device: str) -> str:
+    """A file name from a device id or run name: every character outside
+    ``A-Za-z0-9._-`` becomes ``_`` (glob-safe: ``IMU[0]`` → ``IMU_0_``)."""
     return re.sub(r"[^A-Za-z0-9._-]", "_", device) or "device"
+
+
+def run_file_stem(run_name: str) -> str:
+    """``import``'s file name for a run: ``<file stem>-<device>``, the device part
+    made safe as ``fit`` makes it (``log:IMU[0]`` → ``log-IMU_0_``)."""
+    return safe_device_name(run_name.replace(":", "-"))
 
 
 def calibration_path(out: str, device: str, n_devices: int) -> Path:

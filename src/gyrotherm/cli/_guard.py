@@ -1,7 +1,9 @@
 """What the command line prints when a command fails: one line, never a stack.
 
 * :class:`gyrotherm.GyrothermError` (bad input, refused fit, …): ``gyrotherm: error:
-  <message>``, exit 2. The message names the file, what is wrong and what to do.
+  <message>``, exit 2. The message names the file, what is wrong and what to do; one
+  that names none of the command's input files (a run name, an option) gets them
+  in front (``a.ulg, b.ulg: <message>``).
 * :class:`OSError` (a file that cannot be read or written, a full disk):
   ``gyrotherm: error: <file>: <reason>``, exit 2.
 * anything else is a bug in gyrotherm: one line naming the exception and the file
@@ -58,6 +60,13 @@ def _os_error_line(exc: OSError) -> str:
     return f"{where}: {exc.strerror or exc}"
 
 
+def _naming_inputs(message: str, args: argparse.Namespace) -> str:
+    inputs = [str(p) for p in getattr(args, "runs", None) or []]
+    if not inputs or any(p in message or Path(p).name in message for p in inputs):
+        return message
+    return f"{', '.join(inputs)}: {message}"
+
+
 def run_command(func: Callable[[argparse.Namespace], int], args: argparse.Namespace,
                 argv: list[str]) -> int:
     """``func(args)`` with the failures of the module docstring turned into one line."""
@@ -67,7 +76,7 @@ def run_command(func: Callable[[argparse.Namespace], int], args: argparse.Namesp
     except GyrothermError as exc:
         if debug:
             raise
-        print(f"gyrotherm: error: {exc}", file=sys.stderr)
+        print(f"gyrotherm: error: {_naming_inputs(str(exc), args)}", file=sys.stderr)
         return EXIT_USER_ERROR
     except OSError as exc:
         if debug:

@@ -8,7 +8,8 @@ column map and the original unit of each column (``unit_<role>``).
 
 ``--out``: a directory (it exists, or the name has no ``.csv`` suffix; created
 with its parents) gets one ``<run name>.csv`` per run (``:`` in a name becomes
-``-``); a ``.csv`` file name takes exactly one run.
+``-``, any other character outside ``A-Za-z0-9._-`` ``_``, as ``fit`` names
+calibrations: glob-safe); a ``.csv`` file name takes exactly one run.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from pathlib import Path
 from gyrotherm import __version__
 from gyrotherm._errors import ConfigError, RunFileError
 from gyrotherm.cli import _conventions as conv
+from gyrotherm.cli._fitrest import run_file_stem
 from gyrotherm.cli._inputs import add_input_options, load_inputs
 from gyrotherm.codecs import Run, write_run
 
@@ -37,7 +39,7 @@ def _with_provenance(run: Run) -> Run:
 
 def _targets(out: Path, runs: list[Run]) -> list[Path]:
     if out.is_dir() or out.suffix.lower() != ".csv":
-        names = [r.name.replace(":", "-").replace("/", "-") for r in runs]
+        names = [run_file_stem(r.name) for r in runs]
         dupes = sorted({n for n in names if names.count(n) > 1})
         if dupes:
             raise RunFileError(f"--out {out}: several runs would be written to the same "

@@ -9,7 +9,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from gyrotherm._errors import CalibrationError, ConfigError
+from gyrotherm._errors import ConfigError
 from gyrotherm.cli import _conventions as conv
 from gyrotherm.cli import _fitgates, _fitrest, _paper
 from gyrotherm.cli._common import (
@@ -26,7 +26,6 @@ from gyrotherm.compensation import (
     MODELS,
     Calibration,
     RunFeatures,
-    RunScore,
     ZeroConfig,
     default_scaling,
     features,
@@ -89,7 +88,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
     if names:
         _fitrest.refuse_motion(reports, command="fit --effects")
     feats = _fitrest.mask_motion(_features_of(runs, est, quiet=args.quiet), reports)
-    groups = _fitrest.device_groups(runs, feats)
+    groups = {device: _fitrest.drop_restless(group, file=sys.stderr)
+              for device, group in _fitrest.device_groups(runs, feats).items()}
     paths = {device: conv.output_path(_fitrest.calibration_path(args.out, device, len(groups)),
                                       option="--out") for device in groups}
     with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
@@ -111,7 +111,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
 
 _SINGLE_KEYS = ("calibration", "model", "method", "coefficients_physical", "per_run",
-                "leave_one_run_out")
+                "leave_one_run_out", "quality")
 """With one device, ``--json`` also has its calibration's keys at the top level."""
 
 
@@ -240,7 +240,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         _fitrest.print_rest_report(reports, use="the scores")
     zero = zero_option(args)
     removed = [removed_bias(cal, f, zero=zero) for f in feats]
-    scores = _scored([s for f, rb in zip(feats, removed, strict=True)
+    scores = _fitrest.scored_at_rest([s for f, rb in zip(feats, removed, strict=True)
                       for s in score(cal, f, removed=rb)], args)
     zeros = [zero_report(f, rb.zero) for f, rb in zip(feats, removed, strict=True)
              if rb.zero is not None]
@@ -269,21 +269,6 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         _report(args, cal, feats, title=f"evaluate: {args.calibration}",
                 calibration_path=str(args.calibration), zero=zero)
     return 0
-
-
-def _scored(scores: list[RunScore], args: argparse.Namespace) -> list[RunScore]:
-    """The scores with rows in them; a note for runs left without any (every row
-    excluded as motion); CalibrationError when nothing is left to score."""
-    empty = sorted({s.run for s in scores if s.raw.n == 0})
-    kept = [s for s in scores if s.raw.n > 0]
-    if not kept:
-        raise CalibrationError(
-            f"{', '.join(args.runs)}: nothing to score with {args.calibration}: no row "
-            f"of any run is at rest (--rest {args.rest}); give runs with the gyro still, "
-            "or --rest all if it was still throughout")
-    if empty:
-        print(f"not scored (no row at rest): {', '.join(empty)}", file=sys.stderr)
-    return kept
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

@@ -175,8 +175,33 @@ def format_run(run: Run) -> str:
     cols = _columns(run)
     buf.write(",".join(name for name, _ in cols) + "\n")
     data = np.column_stack([v for _, v in cols]) if len(run) else np.empty((0, len(cols)))
-    np.savetxt(buf, data, delimiter=",", fmt="%.9g")
+    fmt = [_time_format(run.time_s)] + [_VALUE_FORMAT] * (len(cols) - 1)
+    np.savetxt(buf, data, delimiter=",", fmt=fmt)
     return buf.getvalue()
+
+
+_VALUE_FORMAT = "%.9g"
+"""9 significant digits: every float32 (the loggers' type) reads back exactly."""
+
+
+def _time_format(time_s: FloatArray) -> str:
+    """``%.9g`` when it reads the times back exactly (simulated and since-boot clocks),
+    else ``%.17g`` (epoch stamps: 1.7e9 s at 9 digits would be 10 s steps).
+
+    Exact at 9 digits ⇔ each t is the double nearest n·10^-k with n < 10^9 integer, k
+    its decimal places: checked with numpy rounding, not by formatting every row."""
+    t = np.asarray(time_s, dtype=np.float64)
+    mag = np.abs(t)
+    places = 8 - np.floor(np.log10(np.where(mag > 0, mag, 1.0))).astype(np.int64)
+    if t.size == 0:
+        return _VALUE_FORMAT
+    if not np.all(np.isfinite(t)) or np.any(np.abs(places) > 22):
+        return "%.17g"
+    scale = 10.0 ** np.abs(places)  # exact powers of ten (|places| ≤ 22)
+    n = np.where(places >= 0, np.round(t * scale), np.round(t / scale))
+    back = np.where(places >= 0, n / scale, n * scale)
+    exact = bool(np.array_equal(back, t)) and bool(np.all(np.abs(n) < 1e9))
+    return _VALUE_FORMAT if exact else "%.17g"
 
 
 def write_run(run: Run, path: str | Path) -> Path:

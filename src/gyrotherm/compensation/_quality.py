@@ -15,6 +15,10 @@ gate                   measured                                refused when
 ``validation``         runs left out one at a time             < 2 (a warning, never a refusal)
 =====================  ======================================  =================================
 
+``sample-rate-recommended`` warns (never refuses) below
+:data:`RECOMMENDED_SAMPLE_RATE_HZ`, naming PX4's logger setting (its default profile
+logs ``sensor_gyro`` at 1 Hz).
+
 A failed gate is a refusal (``fit`` exits 2 naming the gate, the measured value and the
 threshold) unless ``--force``, which writes the calibration anyway with the failures in
 its provenance (``quality_warnings``). ``validation`` only warns: a single run (or
@@ -35,6 +39,8 @@ MIN_REST_ROWS = 50
 """Fewer rows than this (at rest, over all runs of a device) fit noise, not a bias curve."""
 MIN_SAMPLE_RATE_HZ = 0.5
 """Below this the log is not a gyro recording (PX4's default profile logs 1 Hz)."""
+RECOMMENDED_SAMPLE_RATE_HZ = 10.0
+"""Below this a warning (never a refusal): rest detection and ΔT need faster rows."""
 MIN_DISTINCT_TEMPERATURES = 3
 """Fewer distinct readings: the sensor is stuck or not logged (ArduPilot ``Temp`` = 0)."""
 MIN_TEMPERATURE_SPAN_C = 5.0
@@ -62,9 +68,10 @@ class Gate:
     def line(self) -> str:
         value = ("singular" if self.name == "conditioning" else "none") \
             if self.measured is None else f"{self.measured:.6g}"
-        verdict = "ok" if self.passed else "REFUSED" if self.refuses else "warning"
-        return (f"{self.name}: {value} {self.unit} (threshold {self.threshold:g} "
-                f"{self.unit}) {verdict}: {self.detail}")
+        verdict = "ok" if self.passed else "refused" if self.refuses else "warning"
+        unit = f" {self.unit}" if self.unit else ""
+        return (f"{self.name}: {value}{unit} (threshold {self.threshold:g}{unit}) "
+                f"{verdict}: {self.detail}")
 
     def to_dict(self) -> dict[str, object]:
         return asdict(self)
@@ -114,6 +121,12 @@ def check(runs: Sequence[RunFeatures], spec: ModelSpec, *, validation: bool) -> 
                       rate is not None and rate >= MIN_SAMPLE_RATE_HZ, True,
                       "median rows per second; log the gyro faster (PX4: SDLOG_PROFILE "
                       "'thermal calibration' or 'sensor comparison')"))
+    if rate is not None and rate >= MIN_SAMPLE_RATE_HZ:
+        gates.append(Gate("sample-rate-recommended", rate, RECOMMENDED_SAMPLE_RATE_HZ, "Hz",
+                          rate >= RECOMMENDED_SAMPLE_RATE_HZ, False,
+                          "slow for rest detection and ΔT; PX4's default logger profile "
+                          "logs sensor_gyro at 1 Hz: set SDLOG_PROFILE 'thermal "
+                          "calibration' (or 'sensor comparison') and log again"))
     if n:
         distinct = len(np.unique(temps))
         gates.append(Gate("temperature-stuck", distinct, MIN_DISTINCT_TEMPERATURES,
@@ -152,6 +165,7 @@ __all__ = [
     "MIN_REST_ROWS",
     "MIN_SAMPLE_RATE_HZ",
     "MIN_TEMPERATURE_SPAN_C",
+    "RECOMMENDED_SAMPLE_RATE_HZ",
     "Gate",
     "check",
     "design_condition",

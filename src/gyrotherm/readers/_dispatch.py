@@ -136,6 +136,9 @@ def read_runs(path: str | os.PathLike[str], *, spec: InputSpec) -> list[Run]:
         raise RunFileError(f"{p}: unknown format {fmt!r}; known: {', '.join(FORMATS)}")
     if not p.exists():
         raise RunFileError(f"{p}: no such file")
+    if p.is_file() and p.stat().st_size == 0:
+        raise RunFileError(f"{p}: the file is empty (0 bytes; format {fmt!r} by its name): "
+                           "a log cut before anything was written; give the complete file")
     runs = reader()
     if not runs:
         raise RunFileError(f"{p}: format {fmt!r}: no run in the file")
