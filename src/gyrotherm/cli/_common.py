@@ -42,9 +42,30 @@ def load_runs(paths: Sequence[str], *, quiet: bool = False,
     report = progress("reading runs", quiet=quiet)
     runs = []
     for i, p in enumerate(paths):
-        runs.extend(read_runs(p, spec=spec or InputSpec()))
+        found = read_runs(p, spec=spec or InputSpec())
+        for note in damage_notes(p, found):
+            print(f"note: {note}", file=sys.stderr)
+        runs.extend(found)
         report(i + 1, len(paths))
     return runs
+
+
+def damage_notes(path: str, runs: Sequence[Run]) -> list[str]:
+    """What a reader left out of ``path`` (its runs' metadata): a cut end, IMU
+    instances skipped. One line each, printed whatever ``-q`` says."""
+    meta = runs[0].metadata if runs else {}
+    notes = []
+    cut_bytes = int(meta.get("bytes_cut_at_end", "0") or 0)
+    cut_messages = int(meta.get("messages_cut_at_end", "0") or 0)
+    if cut_bytes or cut_messages:
+        what = f"{cut_bytes} bytes of a last message" if cut_bytes else \
+            f"{cut_messages} IMU message(s)"
+        notes.append(f"{path}: the log is cut short ({what} unread at its end); read up to "
+                     "the last whole message")
+    if meta.get("instances_skipped"):
+        notes.append(f"{path}: IMU instance(s) skipped, the others read: "
+                     f"{meta['instances_skipped']}")
+    return notes
 
 
 def add_estimator_options(parser: argparse.ArgumentParser) -> None:

@@ -18,7 +18,8 @@ from __future__ import annotations
 import hashlib
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -151,3 +152,26 @@ def make_run(
         sha256=sha256,
         extra=extra,
     )
+
+
+def each_instance(path: Path, attempts: Sequence[tuple[str, Callable[[], Run]]]) -> list[Run]:
+    """The runs of a log's IMU instances (``(label, build)`` each): an instance whose
+    build raises :class:`RunFileError` (NaN temperature throughout, fields missing) is
+    skipped, the others kept with metadata ``instances_skipped`` saying which and why.
+    Only when every instance fails is the log refused (naming each)."""
+    runs: list[Run] = []
+    skipped: list[str] = []
+    for label, build in attempts:
+        try:
+            runs.append(build())
+        except RunFileError as exc:
+            reason = str(exc).removeprefix(f"{path}: ")
+            skipped.append(reason if reason.startswith(label) else f"{label}: {reason}")
+    if not runs and skipped:
+        if len(skipped) == 1:
+            raise RunFileError(f"{path}: {skipped[0]}")
+        raise RunFileError(f"{path}: no usable IMU instance: " + "; ".join(skipped))
+    if skipped:
+        note = "; ".join(skipped)
+        runs = [replace(r, metadata={**r.metadata, "instances_skipped": note}) for r in runs]
+    return runs

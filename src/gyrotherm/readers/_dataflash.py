@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import os
 import re
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +36,14 @@ from numpy.typing import NDArray
 
 from gyrotherm._errors import RunFileError
 from gyrotherm.codecs import Run
-from gyrotherm.readers._common import DEG_PER_RAD, S_PER_US, FloatArray, make_run, sha256_of
+from gyrotherm.readers._common import (
+    DEG_PER_RAD,
+    S_PER_US,
+    FloatArray,
+    each_instance,
+    make_run,
+    sha256_of,
+)
 
 MESSAGES = ("IMU", "IMU2", "IMU3")
 _GYRO = ("GyrX", "GyrY", "GyrZ")
@@ -113,30 +121,34 @@ def read_dataflash(path: str | os.PathLike[str]) -> list[Run]:
     finally:
         log.close()  # the mmap and the file handle
     sha = sha256_of(p)
-    runs = []
-    for inst, name, cols in sorted(parts, key=lambda x: x[0]):
-        time_col = "TimeUS" if "TimeUS" in cols else "TimeMS"
-        temp = cols["T"] if "T" in cols else cols["Temp"]
-        scale = 1e-3 if time_col == "TimeMS" else S_PER_US
-        meta = {
-            "format": "ardupilot-dataflash",
-            "device_id": f"IMU[{inst}]",
-            "instance": str(inst),
-            "message": name,
-            "unit_time": "ms" if time_col == "TimeMS" else "us",
-            "unit_temperature": "degC",
-            "unit_rate": "rad/s",
-            "unit_accel": "m/s2",
-            "messages_cut_at_end": str(cut),
-        }
-        runs.append(make_run(
-            path=p, device=f"IMU[{inst}]", where=f"message {name!r} instance {inst}",
-            time_s=cols[time_col] * scale, temperature_c=temp,
-            rates={ax: cols[c] for ax, c in zip("xyz", _GYRO, strict=True)},
-            rate_to_dps=DEG_PER_RAD,
-            accel_mps2={ax: cols[c] for ax, c in zip("xyz", _ACCEL, strict=True)},
-            metadata=meta, sha256=sha))
-    return runs
+    return each_instance(p, [(f"message {name!r} instance {inst}",
+                              partial(_run, p, inst, name, cols, cut=cut, sha=sha))
+                             for inst, name, cols in sorted(parts, key=lambda x: x[0])])
+
+
+def _run(p: Path, inst: int, name: str, cols: dict[str, FloatArray], *, cut: int,
+         sha: str) -> Run:
+    time_col = "TimeUS" if "TimeUS" in cols else "TimeMS"
+    temp = cols["T"] if "T" in cols else cols["Temp"]
+    scale = 1e-3 if time_col == "TimeMS" else S_PER_US
+    meta = {
+        "format": "ardupilot-dataflash",
+        "device_id": f"IMU[{inst}]",
+        "instance": str(inst),
+        "message": name,
+        "unit_time": "ms" if time_col == "TimeMS" else "us",
+        "unit_temperature": "degC",
+        "unit_rate": "rad/s",
+        "unit_accel": "m/s2",
+        "messages_cut_at_end": str(cut),
+    }
+    return make_run(
+        path=p, device=f"IMU[{inst}]", where=f"message {name!r} instance {inst}",
+        time_s=cols[time_col] * scale, temperature_c=temp,
+        rates={ax: cols[c] for ax, c in zip("xyz", _GYRO, strict=True)},
+        rate_to_dps=DEG_PER_RAD,
+        accel_mps2={ax: cols[c] for ax, c in zip("xyz", _ACCEL, strict=True)},
+        metadata=meta, sha256=sha)
 
 
 def _parts(p: Path, log: Any) -> tuple[list[tuple[int, str, dict[str, FloatArray]]], int]:

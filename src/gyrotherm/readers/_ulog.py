@@ -14,13 +14,17 @@ order. Fields used (PX4 ``msg/SensorGyro.msg``):
 ``sensor_accel`` with the same instance, when logged, is interpolated onto the
 gyro's time stamps (linear, no extrapolation) into ``Run.extra``
 ``accel_<axis>_mps2`` (m/s²); metadata ``accel`` says ``sensor_accel <i>`` or
-``none``. Logs pyulog flags as corrupt are still read up to the damage
-(metadata ``file_corruption: true``).
+``none``. Logs pyulog flags as corrupt, or that end inside a message (a log cut
+short: metadata ``bytes_cut_at_end``), are still read up to the damage (metadata
+``file_corruption: true``). An instance that cannot be read (NaN temperature
+throughout) is skipped when others can (metadata ``instances_skipped``).
 """
 
 from __future__ import annotations
 
+import mmap
 import os
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +36,7 @@ from gyrotherm.readers._common import (
     DEG_PER_RAD,
     S_PER_US,
     FloatArray,
+    each_instance,
     interpolate,
     make_run,
     sha256_of,
@@ -83,7 +88,29 @@ def read_ulog(path: str | os.PathLike[str]) -> list[Run]:
     accels = {d.multi_id: d for d in ulog.data_list if d.name == ACCEL_TOPIC}
     sha = sha256_of(p)
     corrupt = bool(getattr(ulog, "file_corruption", False))
-    return [_run(p, g, accels.get(g.multi_id), sha, corrupt) for g in gyros]
+    cut_bytes = bytes_cut_at_end(p)
+    return each_instance(p, [(f"topic {GYRO_TOPIC!r} instance {g.multi_id}",
+                              partial(_run, p, g, accels.get(g.multi_id), sha, corrupt,
+                                      cut_bytes))
+                             for g in gyros])
+
+
+def bytes_cut_at_end(path: Path) -> int:
+    """Bytes of the message the file ends inside, 0 for a log that ends on a message
+    boundary. ULog messages are ``uint16 size, uint8 type, payload`` after the 16-byte
+    header, walked from the start (mapped, not read into memory); a log cut while
+    being written, or copied short, ends inside one."""
+    with path.open("rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as data:
+        pos, end, last = _HEADER_BYTES, len(data), _HEADER_BYTES
+        while pos + 3 <= end:
+            last = pos
+            pos += 3 + int.from_bytes(data[pos:pos + 2], "little")
+    if pos == end:
+        return 0
+    return end - last if pos > end else end - pos
+
+
+_HEADER_BYTES = 16
 
 
 def _time_s(data: dict[str, Any]) -> tuple[FloatArray, str]:
@@ -91,7 +118,8 @@ def _time_s(data: dict[str, Any]) -> tuple[FloatArray, str]:
     return np.asarray(data[key], dtype=np.float64) * S_PER_US, key
 
 
-def _run(path: Path, gyro: Any, accel: Any, sha: str, corrupt: bool) -> Run:
+def _run(path: Path, gyro: Any, accel: Any, sha: str, corrupt: bool, cut_bytes: int
+         ) -> Run:
     where = f"topic {GYRO_TOPIC!r} instance {gyro.multi_id}"
     data: dict[str, Any] = gyro.data
     need = ("x", "y", "z", "temperature", "device_id")
@@ -122,7 +150,8 @@ def _run(path: Path, gyro: Any, accel: Any, sha: str, corrupt: bool) -> Run:
         "unit_rate": "rad/s",
         "unit_accel": "m/s2",
         "accel": accel_label,
-        "file_corruption": "true" if corrupt else "false",
+        "file_corruption": "true" if corrupt or cut_bytes else "false",
+        "bytes_cut_at_end": str(cut_bytes),
     }
     if len(ids) > 1:
         meta["device_ids_seen"] = ",".join(str(int(i)) for i in ids)
