@@ -157,8 +157,10 @@ def _parts(p: Path, log: Any) -> tuple[list[tuple[int, str, dict[str, FloatArray
         log.name_to_id[m]]) > 0]
     if not present:
         seen = sorted(f.name for f in log.formats.values())
-        raise RunFileError(f"{p}: no IMU message (of {list(MESSAGES)}) in the log; message "
-                           f"formats defined: {seen or 'none (not a DataFlash log?)'}")
+        raise RunFileError(f"{p}: no IMU message (of {list(MESSAGES)}) in the log: the "
+                           "autopilot did not log it (set the IMU bit of LOG_BITMASK and log "
+                           f"again); message formats defined: "
+                           f"{seen or 'none (not a DataFlash log?)'}")
     parts: list[tuple[int, str, dict[str, FloatArray]]] = []
     cut = 0
     offsets = {name: np.asarray(log.offsets[log.name_to_id[name]], dtype=np.int64)
