@@ -31,6 +31,7 @@ import pytest
 from gyrotherm.cli import main
 from gyrotherm.codecs import read_run
 from gyrotherm.compensation import load_calibration
+from gyrotherm.readers import InputSpec, read_runs
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "tests" / "data"
@@ -108,9 +109,16 @@ def _check_import(source: Path, out_dir: Path) -> None:
     """Each run file written reads back; for a ULog, to pyulog's own values exactly."""
     written = sorted(out_dir.glob("*.csv"))
     assert written, f"{source}: import exited 0 and wrote nothing"
+    read = {r.name: r for r in read_runs(source, spec=InputSpec())}
     for f in written:
         run = read_run(f)
         assert run.metadata["source_sha256"]
+        # bit for bit what the reader read
+        direct = read[run.metadata["name"]] if "name" in run.metadata else read[run.name]
+        np.testing.assert_array_equal(run.time_s, direct.time_s)
+        np.testing.assert_array_equal(run.temperature_c, direct.temperature_c)
+        for axis, values in direct.rates_dps.items():
+            np.testing.assert_array_equal(run.rates_dps[axis], values)
         assert "*" not in f.name and "[" not in f.name and "?" not in f.name, f.name
         if not source.is_file() or source.read_bytes()[:7] != b"ULog\x01\x12\x35":
             continue

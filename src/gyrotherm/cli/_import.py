@@ -63,7 +63,7 @@ def cmd_import(args: argparse.Namespace) -> int:
     written = []
     for run, path in zip(runs, targets, strict=True):
         path.parent.mkdir(parents=True, exist_ok=True)
-        write_run(_with_provenance(run), path)
+        write_run(_with_provenance(run), path, exact=True)  # reads back bit for bit
         t_lo, t_hi = float(run.temperature_c.min()), float(run.temperature_c.max())
         fmt = run.metadata.get("format", "?")
         written.append({"path": str(path), "run": run.name, "rows": len(run),

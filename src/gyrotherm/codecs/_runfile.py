@@ -163,8 +163,10 @@ def _columns(run: Run) -> list[tuple[str, FloatArray]]:
     return cols
 
 
-def format_run(run: Run) -> str:
-    """The run as CSV version 1 text."""
+def format_run(run: Run, *, exact: bool = False) -> str:
+    """The run as CSV version 1 text: values with 9 significant digits (relative
+    error ≤ 5·10⁻¹⁰), the time column exactly; with ``exact`` every column exactly
+    (each with 17 digits where 9 do not read its values back bit for bit)."""
     buf = io.StringIO()
     buf.write(f"# {_MAGIC}: {RUN_FILE_VERSION}\n")
     meta = {"name": run.name, **{k: v for k, v in run.metadata.items() if k != "name"}}
@@ -175,22 +177,24 @@ def format_run(run: Run) -> str:
     cols = _columns(run)
     buf.write(",".join(name for name, _ in cols) + "\n")
     data = np.column_stack([v for _, v in cols]) if len(run) else np.empty((0, len(cols)))
-    fmt = [_time_format(run.time_s)] + [_VALUE_FORMAT] * (len(cols) - 1)
+    fmt = [_round_trip_format(v) if exact or name == "time_s" else _VALUE_FORMAT
+           for name, v in cols]
     np.savetxt(buf, data, delimiter=",", fmt=fmt)
     return buf.getvalue()
 
 
 _VALUE_FORMAT = "%.9g"
-"""9 significant digits: every float32 (the loggers' type) reads back exactly."""
+"""9 significant digits: enough for any float32 reading to be told apart."""
 
 
-def _time_format(time_s: FloatArray) -> str:
-    """``%.9g`` when it reads the times back exactly (simulated and since-boot clocks),
-    else ``%.17g`` (epoch stamps: 1.7e9 s at 9 digits would be 10 s steps).
+def _round_trip_format(values: FloatArray) -> str:
+    """``%.9g`` when it reads ``values`` back exactly (e.g. times of simulated and
+    since-boot clocks), else ``%.17g`` (epoch stamps: 1.7e9 s at 9 digits would be
+    10-s steps).
 
     Exact at 9 digits ⇔ each t is the double nearest n·10^-k with n < 10^9 integer, k
     its decimal places: checked with numpy rounding, not by formatting every row."""
-    t = np.asarray(time_s, dtype=np.float64)
+    t = np.asarray(values, dtype=np.float64)
     mag = np.abs(t)
     places = 8 - np.floor(np.log10(np.where(mag > 0, mag, 1.0))).astype(np.int64)
     if t.size == 0:
@@ -204,10 +208,11 @@ def _time_format(time_s: FloatArray) -> str:
     return _VALUE_FORMAT if exact else "%.17g"
 
 
-def write_run(run: Run, path: str | Path) -> Path:
-    """Write ``run`` to ``path`` (CSV version 1) and return the path."""
+def write_run(run: Run, path: str | Path, *, exact: bool = False) -> Path:
+    """Write ``run`` to ``path`` (CSV version 1; ``exact``: :func:`format_run`) and
+    return the path."""
     p = Path(path)
-    p.write_text(format_run(run), encoding="utf-8")
+    p.write_text(format_run(run, exact=exact), encoding="utf-8")
     return p
 
 
