@@ -190,3 +190,43 @@ def test_corpus_is_present_or_says_why() -> None:
     for p in files:
         assert p.name in text, f"{p} not named in SOURCE.md"
         assert p.stat().st_size <= 5 * 1024 * 1024, p
+
+
+def test_a_real_board_with_a_nan_temperature_gyro_keeps_the_other(tmp_path: Path) -> None:
+    """The Pixhawk 5 log of the corpus: pyulog says sensor_gyro 1 logs NaN temperature
+    throughout and 0 does not; import writes instance 0 and notes 1, not a refusal."""
+    real = corpus_dir()
+    if real is None or not (real / "px4" / "roboto_fmu_v5.ulg").is_file():
+        pytest.skip("real-log corpus not found (see test_corpus_is_present_or_says_why)")
+    from pyulog import ULog
+
+    path = real / "px4" / "roboto_fmu_v5.ulg"
+    nan = {d.multi_id: bool(np.isnan(d.data["temperature"]).all())
+           for d in ULog(str(path), ["sensor_gyro"]).data_list}
+    assert nan == {0: False, 1: True}
+    code, _, err = run_cli(["import", str(path), "--out", str(tmp_path)])
+    assert code == 0, err
+    assert [f.name for f in tmp_path.glob("*.csv")] == ["roboto_fmu_v5-sensor_gyro0.csv"]
+    assert err == [f"note: {path}: IMU instance(s) skipped, the others read: topic "
+                   "'sensor_gyro' instance 1: no temperature in 10 sample(s)"]
+
+
+def test_as_a_process_a_failure_is_one_line(tmp_path: Path) -> None:
+    """The same through ``python -m gyrotherm`` (what a user runs): a ULog cut in its
+    header, renamed ``.log``, refused in one line on stderr saying it is damaged (not
+    the logger advice of a complete log without the topic), nothing on stdout (pyulog
+    prints its findings there: they go into the message)."""
+    import subprocess
+    import sys
+
+    head = tmp_path / "flight.log"
+    head.write_bytes((DATA / "px4_two_gyros.ulg").read_bytes()[:40])
+    proc = subprocess.run([sys.executable, "-m", "gyrotherm", "-q", "fit", str(head), "--out",
+                           str(tmp_path / "c.json")], capture_output=True, text=True,
+                          timeout=120, check=False, env={**os.environ, "GYROTHERM_DEBUG": ""})
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stdout == ""
+    (line,) = proc.stderr.splitlines()
+    assert line.startswith(f"gyrotherm: error: {head}: a damaged or cut ULog (40 bytes; "
+                           "pyulog: "), line
+    assert line.endswith("give the complete file"), line

@@ -22,6 +22,8 @@ throughout) is skipped when others can (metadata ``instances_skipped``).
 
 from __future__ import annotations
 
+import contextlib
+import io
 import mmap
 import os
 from functools import partial
@@ -65,10 +67,20 @@ def _load(path: Path) -> Any:
         from pyulog import ULog
     except ModuleNotFoundError as exc:  # pragma: no cover  (a runtime dependency)
         raise RunFileError(f"{path}: reading PX4 ULog needs pyulog: pip install pyulog") from exc
+    said = io.StringIO()  # pyulog prints what it finds wrong on stdout: kept, not shown
     try:
-        return ULog(str(path), [GYRO_TOPIC, ACCEL_TOPIC])
+        with contextlib.redirect_stdout(said):
+            ulog = ULog(str(path), [GYRO_TOPIC, ACCEL_TOPIC])
     except Exception as exc:  # pyulog raises ULogException, struct.error, IndexError ...
-        raise RunFileError(f"{path}: not a readable PX4 ULog file: {exc}") from exc
+        raise RunFileError(f"{path}: not a readable PX4 ULog file: {exc}"
+                           f"{_pyulog_said(said.getvalue())}") from exc
+    ulog.gyrotherm_pyulog_said = _pyulog_said(said.getvalue())
+    return ulog
+
+
+def _pyulog_said(text: str) -> str:
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    return f"; pyulog: {'; '.join(lines)}" if lines else ""
 
 
 def read_ulog(path: str | os.PathLike[str]) -> list[Run]:
@@ -79,6 +91,10 @@ def read_ulog(path: str | os.PathLike[str]) -> list[Run]:
     p = Path(path)
     ulog = _load(p)
     gyros = sorted((d for d in ulog.data_list if d.name == GYRO_TOPIC), key=lambda d: d.multi_id)
+    if not gyros and (ulog.file_corruption or ulog.gyrotherm_pyulog_said):
+        raise RunFileError(
+            f"{p}: a damaged or cut ULog ({p.stat().st_size} bytes{ulog.gyrotherm_pyulog_said}"
+            f"): no {GYRO_TOPIC!r} data before the damage; give the complete file")
     if not gyros:
         logged = sorted({d.name for d in ulog.data_list})
         raise RunFileError(
