@@ -62,7 +62,8 @@ def decode_device_id(device_id: int) -> str:
     return f"{kind} bus {bus} address 0x{address:02x} devtype 0x{devtype:02x}"
 
 
-def _load(path: Path) -> Any:
+def _load(path: Path) -> tuple[Any, str]:
+    """pyulog's ULog of ``path`` and what pyulog printed about it ("" or "; pyulog: ...")."""
     try:
         from pyulog import ULog
     except ModuleNotFoundError as exc:  # pragma: no cover  (a runtime dependency)
@@ -74,8 +75,7 @@ def _load(path: Path) -> Any:
     except Exception as exc:  # pyulog raises ULogException, struct.error, IndexError ...
         raise RunFileError(f"{path}: not a readable PX4 ULog file: {exc}"
                            f"{_pyulog_said(said.getvalue())}") from exc
-    ulog.gyrotherm_pyulog_said = _pyulog_said(said.getvalue())
-    return ulog
+    return ulog, _pyulog_said(said.getvalue())
 
 
 def _pyulog_said(text: str) -> str:
@@ -89,11 +89,11 @@ def read_ulog(path: str | os.PathLike[str]) -> list[Run]:
     Raises :class:`RunFileError` naming the file, the topic and what is missing.
     """
     p = Path(path)
-    ulog = _load(p)
+    ulog, said = _load(p)
     gyros = sorted((d for d in ulog.data_list if d.name == GYRO_TOPIC), key=lambda d: d.multi_id)
-    if not gyros and (ulog.file_corruption or ulog.gyrotherm_pyulog_said):
+    if not gyros and (ulog.file_corruption or said):
         raise RunFileError(
-            f"{p}: a damaged or cut ULog ({p.stat().st_size} bytes{ulog.gyrotherm_pyulog_said}"
+            f"{p}: a damaged or cut ULog ({p.stat().st_size} bytes{said}"
             f"): no {GYRO_TOPIC!r} data before the damage; give the complete file")
     if not gyros:
         logged = sorted({d.name for d in ulog.data_list})
