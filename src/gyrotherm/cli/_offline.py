@@ -99,7 +99,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
         if len(groups) > 1:
             raise ConfigError(f"--effects fits one device: these runs hold {len(groups)} "
                               f"({', '.join(repr(g) for g in groups)}); fit each apart")
-        return _fit_effects(args, est, feats, names)
+        return _fit_effects(args, est, feats, names, next(iter(gates.values())))
     written = [_fit_device(args, est, group, device, paths[device], gates[device],
                            several=len(groups) > 1) for device, group in groups.items()]
     if args.json:
@@ -196,7 +196,7 @@ def _effect_names(args: argparse.Namespace) -> tuple[str, ...]:
 
 
 def _fit_effects(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunFeatures],
-                 names: tuple[str, ...]) -> int:
+                 names: tuple[str, ...], gates: list[Gate]) -> int:
     """``fit --effects``: the paper model plus named effects on every axis, their
     nonlinear parameters searched per axis as the diagnosis does; a version-2 file."""
     from gyrotherm.analysis._export import fit_effects
@@ -204,7 +204,7 @@ def _fit_effects(args: argparse.Namespace, est: EstimatorConfig, feats: list[Run
 
     result = fit_effects(feats, {a: names for a in common_axes(feats)}, estimator=est,
                          provenance={"effects_requested": list(names)})
-    cal = result.calibration
+    cal = _fitgates.record(result.calibration, gates)
     for axis in cal.axes if not args.json else ():
         print(f"axis {axis}: paper+{'+'.join(names)}: leave-one-run-out RMS (1-s blocks) "
               f"{result.baseline_heldout_rms_dps[axis]:.5g} (paper) → "
