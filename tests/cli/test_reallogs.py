@@ -6,7 +6,8 @@ repository, commit and licence), found as ``$GYROTHERM_REALLOGS``, else
 ``../shared/data/reallogs`` beside the project; plus the logs committed in
 ``tests/data`` (a real PX4 log's IMU topics, a real ROS 2 MCAP bag, and the project's
 DataFlash/rosbag2/MCAP fixtures), which are always there. Each file is also tried cut at
-60 %, empty, and renamed (``.renamed``: detection by content), copies made here.
+60 %, cut to its first 100 bytes (inside the header), empty, and renamed (``.renamed``:
+detection by content), copies made here.
 
 On each, ``import``, ``fit``, ``evaluate``, ``diagnose`` and ``export`` run in-process
 (:func:`gyrotherm.cli.main`). Accepted: exit 0 with a usable result (run files that read
@@ -59,7 +60,8 @@ def corpus_files() -> list[Path]:
 
 def _cases() -> list[tuple[Path, str]]:
     return [(p, v) for p in corpus_files()
-            for v in (("original",) if p.is_dir() else ("original", "cut60", "empty", "renamed"))]
+            for v in (("original",) if p.is_dir() else
+                      ("original", "cut60", "head100", "empty", "renamed"))]
 
 
 def _variant(path: Path, kind: str, where: Path) -> Path:
@@ -67,8 +69,8 @@ def _variant(path: Path, kind: str, where: Path) -> Path:
         return path
     data = path.read_bytes()
     out = where / (f"{path.stem}.renamed" if kind == "renamed" else f"{kind}-{path.name}")
-    out.write_bytes({"cut60": data[: len(data) * 6 // 10], "empty": b"",
-                     "renamed": data}[kind])
+    out.write_bytes({"cut60": data[: len(data) * 6 // 10], "head100": data[:100],
+                     "empty": b"", "renamed": data}[kind])
     return out
 
 
