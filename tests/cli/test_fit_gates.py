@@ -161,3 +161,18 @@ def test_unexpected_exception_is_one_line_and_a_log_file(
     assert "Traceback" in log.read_text() and "a planted bug" in log.read_text()
     with pytest.raises(ZeroDivisionError):
         main(["--debug", "-q", "fit", *files, "--out", str(tmp_path / "c.json")])
+
+
+def test_ctrl_c_is_one_line(runs: list[Run], tmp_path: Path,
+                            capsys: pytest.CaptureFixture[str],
+                            monkeypatch: pytest.MonkeyPatch) -> None:
+    import gyrotherm.cli._offline as offline
+
+    def interrupted(_args: object) -> int:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(offline, "cmd_fit", interrupted)
+    monkeypatch.delenv("GYROTHERM_DEBUG", raising=False)
+    files = _write(tmp_path, runs[:1])
+    assert main(["-q", "fit", *files, "--out", str(tmp_path / "c.json")]) == 130
+    assert capsys.readouterr().err.splitlines() == ["gyrotherm: interrupted"]

@@ -11,6 +11,7 @@
   ``~/.local/state/gyrotherm/``, else the temporary directory), exit
   :data:`EXIT_INTERNAL_ERROR`. ``gyrotherm --debug …`` (or ``GYROTHERM_DEBUG=1``)
   lets every exception through with its traceback instead.
+* Ctrl-C: ``gyrotherm: interrupted``, exit 130.
 """
 
 from __future__ import annotations
@@ -30,6 +31,8 @@ EXIT_USER_ERROR = 2
 """Bad input or a refusal: the message says what to do."""
 EXIT_INTERNAL_ERROR = 70
 """An unexpected exception: a bug (``EX_SOFTWARE`` of sysexits.h)."""
+EXIT_INTERRUPTED = 130
+"""Ctrl-C (128 + SIGINT), as a shell reports it."""
 DEBUG_ENV = "GYROTHERM_DEBUG"
 
 
@@ -78,6 +81,11 @@ def run_command(func: Callable[[argparse.Namespace], int], args: argparse.Namesp
             raise
         print(f"gyrotherm: error: {_naming_inputs(str(exc), args)}", file=sys.stderr)
         return EXIT_USER_ERROR
+    except KeyboardInterrupt:
+        if debug:
+            raise
+        print("gyrotherm: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     except OSError as exc:
         if debug:
             raise
@@ -95,5 +103,5 @@ def run_command(func: Callable[[argparse.Namespace], int], args: argparse.Namesp
         return EXIT_INTERNAL_ERROR
 
 
-__all__ = ["DEBUG_ENV", "EXIT_INTERNAL_ERROR", "EXIT_USER_ERROR", "run_command",
+__all__ = ["DEBUG_ENV", "EXIT_INTERNAL_ERROR", "EXIT_INTERRUPTED", "EXIT_USER_ERROR", "run_command",
            "write_traceback"]
