@@ -12,6 +12,9 @@
   :data:`EXIT_INTERNAL_ERROR`. ``gyrotherm --debug …`` (or ``GYROTHERM_DEBUG=1``)
   lets every exception through with its traceback instead.
 * Ctrl-C: ``gyrotherm: interrupted``, exit 130.
+
+``gyrotherm run`` (the daemon) keeps an unexpected exception's traceback on stderr as
+before: systemd's journal records it.
 """
 
 from __future__ import annotations
@@ -34,6 +37,8 @@ EXIT_INTERNAL_ERROR = 70
 EXIT_INTERRUPTED = 130
 """Ctrl-C (128 + SIGINT), as a shell reports it."""
 DEBUG_ENV = "GYROTHERM_DEBUG"
+KEEP_TRACEBACK_COMMANDS = frozenset({"run"})
+"""The daemon: under systemd its journal is where the traceback belongs."""
 
 
 def _log_dirs() -> list[Path]:
@@ -92,7 +97,7 @@ def run_command(func: Callable[[argparse.Namespace], int], args: argparse.Namesp
         print(f"gyrotherm: error: {_os_error_line(exc)}", file=sys.stderr)
         return EXIT_USER_ERROR
     except Exception as exc:
-        if debug:
+        if debug or getattr(args, "command", None) in KEEP_TRACEBACK_COMMANDS:
             raise
         path = write_traceback(exc, argv)
         where = f"the traceback is in {path}" if path else "no file could take the traceback"
