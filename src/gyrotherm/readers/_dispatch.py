@@ -30,24 +30,18 @@ from types import ModuleType
 from gyrotherm._errors import RunFileError
 from gyrotherm.codecs import DEFAULT_DBC_PATH, Run, SignalMap, read_run, run_from_candump
 from gyrotherm.codecs._candump_run import is_candump_log
+from gyrotherm.readers._magic import HEAD_BYTES, content_kind
 from gyrotherm.readers._spec import InputSpec
 from gyrotherm.readers._text import read_text
 
 FORMATS = ("auto", "run", "text", "candump", "ulog", "dataflash", "rosbag")
 """Values of ``InputSpec.format`` / ``--format``."""
-_MAGIC = b"# gyrotherm-run:"
-_CONTENT_MAGIC = (
-    (b"ULog\x01\x12\x35", "ulog"),
-    (b"\xa3\x95", "dataflash"),
-    (b"\x89MCAP", "rosbag"),
-    (b"SQLite format 3\x00", "rosbag"),
-    (b"#ROSBAG V2.0", "rosbag"),
-    (_MAGIC, "run"),  # (with a BOM, codecs.read_run refuses it: read as text below)
-)
-"""A file's first bytes → its format (module docstring)."""
+_FORMAT_OF_KIND = {"ulog": "ulog", "dataflash": "dataflash", "mcap": "rosbag",
+                   "sqlite": "rosbag", "ros1": "rosbag", "run": "run"}
+"""A file's content kind (:func:`gyrotherm.readers._magic.content_kind`) → its reader.
+A run file with a BOM has no kind: codecs.read_run refuses it, it is read as text."""
 _SUFFIX = {".ulg": "ulog", ".bin": "dataflash", ".mcap": "rosbag", ".db3": "rosbag",
            ".bag": "rosbag"}
-_HEAD_BYTES = 16
 
 
 def detect_format(path: str | os.PathLike[str]) -> str:
@@ -61,12 +55,12 @@ def detect_format(path: str | os.PathLike[str]) -> str:
         return _SUFFIX.get(p.suffix.lower(), "text")
     try:
         with p.open("rb") as fh:
-            head = fh.read(_HEAD_BYTES)
+            head = fh.read(HEAD_BYTES)
     except OSError as exc:
         raise RunFileError(f"{p}: cannot read: {exc.strerror}") from exc
-    for magic, fmt in _CONTENT_MAGIC:
-        if head.startswith(magic):
-            return fmt
+    kind = content_kind(p, head)
+    if kind:
+        return _FORMAT_OF_KIND[kind]
     if not head:
         by_suffix = _SUFFIX.get(p.suffix.lower())
         if by_suffix:

@@ -40,6 +40,7 @@ from gyrotherm.readers._common import (
     sha256_of,
     sort_unique,
 )
+from gyrotherm.readers._magic import content_kind
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
 TEMPERATURE_TYPE = "sensor_msgs/msg/Temperature"
@@ -65,23 +66,6 @@ def _pick_temperature(path: Path, imu: str, temps: Sequence[str], chosen: str | 
         return same_ns[0]
     raise RunFileError(f"{path}: IMU topic {imu!r}: several {TEMPERATURE_TYPE} topics "
                        f"{list(temps)}; name one (temperature_topic / --temperature-topic)")
-
-
-ROS1_MAGIC = b"#ROSBAG V2.0"
-
-
-def is_ros1_bag(path: Path) -> bool:
-    if not path.is_file():
-        return False
-    with path.open("rb") as fh:
-        return fh.read(len(ROS1_MAGIC)) == ROS1_MAGIC
-
-
-def _is_mcap(path: Path) -> bool:
-    if not path.is_file():
-        return False
-    with path.open("rb") as fh:
-        return fh.read(5) == b"\x89MCAP"
 
 
 def _open(path: Path, *, ros1: bool) -> Any:
@@ -142,7 +126,7 @@ def read_rosbag(path: str | os.PathLike[str], *, imu_topic: str | None = None,
     Raises :class:`RunFileError` naming the file, the topic and what is missing.
     """
     p = Path(path)
-    ros1 = is_ros1_bag(p)
+    ros1 = content_kind(p) == "ros1"
     kind = "ROS 1 bag" if ros1 else "rosbag2/MCAP file"
     try:
         reader = _open(p, ros1=ros1)
@@ -203,7 +187,7 @@ def _read(p: Path, reader: Any, imu_topic: str | None, temperature_topic: str | 
                         + ((a.x, a.y, a.z) if has_acc else (nan, nan, nan)))
     except Exception as exc:  # truncated/corrupt storage, undecodable message
         raise RunFileError(f"{p}: unreadable message in the bag: {exc}") from exc
-    fmt = "rosbag1" if ros1 else "mcap" if _is_mcap(p) else "rosbag2"
+    fmt = "rosbag1" if ros1 else "mcap" if content_kind(p) == "mcap" else "rosbag2"
     sha = sha256_of(p)
     runs: list[Run] = []
     for (topic, frame), gathered in sorted(imu_rows.items()):
