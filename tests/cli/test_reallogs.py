@@ -181,17 +181,25 @@ def test_every_command_exits_cleanly(path: Path, kind: str, tmp_path: Path,
 
 def test_corpus_is_present_or_says_why() -> None:
     """The committed logs are always walked; the real corpus when it is beside the
-    project (its files are other projects' data and live in shared/, not in git)."""
+    project (its files are other projects' data and live in shared/, not in git). Its
+    files are those tests/data/REALLOGS.md lists, byte for byte (sha256)."""
+    import hashlib
+    import re
+
+    listed = dict((name, digest) for digest, name in re.findall(
+        r"^([0-9a-f]{64})  (\S+)$", (DATA / "REALLOGS.md").read_text(encoding="utf-8"),
+        flags=re.M))
+    assert len(listed) >= 10
     real = corpus_dir()
     if real is None:
         pytest.skip("real-log corpus not found: set GYROTHERM_REALLOGS or place it at "
-                    "../shared/data/reallogs (SOURCE.md lists the files)")
-    text = (real / "SOURCE.md").read_text(encoding="utf-8")
-    files = [p for p in real.rglob("*") if p.is_file() and p.name != "SOURCE.md"]
-    assert len(files) >= 8
-    for p in files:
-        assert p.name in text, f"{p} not named in SOURCE.md"
-        assert p.stat().st_size <= 5 * 1024 * 1024, p
+                    "../shared/data/reallogs (tests/data/REALLOGS.md lists the files)")
+    files = {p.relative_to(real).as_posix(): p for p in real.rglob("*")
+             if p.is_file() and p.name != "SOURCE.md"}
+    assert set(files) == set(listed)
+    for name, path in files.items():
+        assert hashlib.sha256(path.read_bytes()).hexdigest() == listed[name], name
+        assert path.stat().st_size <= 5 * 1024 * 1024, path
 
 
 def test_a_real_board_with_a_nan_temperature_gyro_keeps_the_other(tmp_path: Path) -> None:
