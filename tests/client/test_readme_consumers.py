@@ -41,7 +41,9 @@ def test_the_record_command_parses() -> None:
 def test_the_ros2_live_command_parses() -> None:
     blocks = [b for b in re.findall(r"```sh\n(.*?)```", _section(), re.S) if "--ros2" in b]
     assert len(blocks) == 1
-    record, echo = [ln.split("#")[0] for ln in blocks[0].replace("\\\n", " ").splitlines()]
+    lines = [ln.split("#")[0] for ln in blocks[0].replace("\\\n", " ").splitlines()]
+    router, record, echo = lines
+    assert shlex.split(router) == ["ros2", "run", "rmw_zenoh_cpp", "rmw_zenohd"]
     argv = shlex.split(record)
     assert argv[:2] == ["gyrotherm", "record"]
     args = _parser().parse_args(argv[2:])

@@ -35,10 +35,10 @@ from typing import Any
 
 from gyrotherm._errors import CalibrationError, ConfigError, DecodeError
 from gyrotherm._signals import stop_on_signals
-from gyrotherm._zenoh import DEFAULT_CONNECT, open_session
+from gyrotherm._zenoh import DEFAULT_CONNECT, open_session, zenoh_error_text
 from gyrotherm.client._channels import Fanout, McapSink, Sink
 from gyrotherm.client._ros import residual_variance_dps2
-from gyrotherm.client._ros2 import RmwZenohSink, check_names
+from gyrotherm.client._ros2 import RmwZenohSink, check_names, ros2_session_config
 from gyrotherm.client._subscriber import Subscriber
 
 ROS_NODE_NAME = "gyrotherm_bridge"
@@ -125,13 +125,26 @@ def record_main(argv: Sequence[str] | None = None, *,
     stop = threading.Event() if stop is None else stop
     with stop_on_signals(stop):
         try:
-            session = (open_session(config_file=args.zenoh_config) if args.zenoh_config
-                       else open_session(connect=args.connect or DEFAULT_CONNECT))  # fmt: skip
+            if args.zenoh_config:
+                session = open_session(config_file=args.zenoh_config)
+            elif args.ros2:  # an rmw_zenoh node's session: reaches nodes behind a router
+                session = _open(ros2_session_config(args.connect or DEFAULT_CONNECT))
+            else:
+                session = open_session(connect=args.connect or DEFAULT_CONNECT)
         except ConfigError as exc:
             print(f"gyrotherm record: error: {exc}", file=sys.stderr)
             return 2
         with session:
             return _record(args, session, stop, on_ready)
+
+
+def _open(config: Any) -> Any:
+    import zenoh
+
+    try:
+        return zenoh.open(config)
+    except zenoh.ZError as exc:
+        raise ConfigError(f"cannot open zenoh session: {zenoh_error_text(exc)}") from exc
 
 
 def _positive(args: argparse.Namespace) -> str | None:

@@ -20,6 +20,21 @@ rmw_zenoh sources it was checked against: :mod:`gyrotherm.client._rmw_zenoh`.
 
 Topics: the channel's topic (``/gyrotherm/<sensor>/imu``) under the node namespace,
 e.g. ``/robot1/gyrotherm/imu0/imu`` with ``namespace="/robot1"``.
+
+**The session** (:func:`ros2_session_config`) is what an rmw_zenoh node has, so that a
+router between record and the ROS 2 nodes works as it does between two nodes. rmw_zenoh's
+``DEFAULT_RMW_ZENOH_SESSION_CONFIG.json5`` (ros2/rmw_zenoh, commit 076f2e7) makes every
+node a *peer* that connects to the router, listens on ``tcp/localhost:0`` and runs gossip
+scouting towards the router; the router (``rmw_zenohd``) learns the peers by gossip and
+either lets them connect to each other (``autoconnect``) or forwards between them
+(``peers_failover_brokering``, which "only works if gossip discovery is enabled and peers
+are configured with gossip target router"). A peer with gossip off and no listen
+endpoint, record's earlier session, reaches the router but no node behind it. So with
+``--ros2`` record's session is a peer with gossip on (multihop off, target the router,
+autoconnect to routers and peers, ``greater-zid`` between peers, rmw_zenoh's values),
+multicast off, listening on ``tcp/127.0.0.1:0`` (loopback, an ephemeral port), and
+connecting to every ``--connect`` endpoint (the daemon, the router, or a router shared
+by both).
 """
 
 from __future__ import annotations
@@ -31,8 +46,25 @@ from typing import Any
 
 import zenoh
 
+from gyrotherm._zenoh import _insert, session_config
 from gyrotherm.client import _rmw_zenoh as rz
 from gyrotherm.client._channels import ChannelSpec
+
+#: rmw_zenoh's gossip settings for a node (DEFAULT_RMW_ZENOH_SESSION_CONFIG.json5).
+ROS2_GOSSIP: dict[str, Any] = {
+    "enabled": True, "multihop": False,
+    "target": {"router": ["router", "peer"], "peer": ["router"]},
+    "autoconnect": {"router": [], "peer": ["router", "peer"]},
+    "autoconnect_strategy": {"peer": {"to_router": "always", "to_peer": "greater-zid"}},
+}
+
+
+def ros2_session_config(connect: list[str] | tuple[str, ...]) -> zenoh.Config:
+    """A session that behaves as an rmw_zenoh node's (module docstring): peer, listening
+    on ``tcp/127.0.0.1:0``, gossip on, multicast off, connecting to ``connect``."""
+    config = session_config(listen=["tcp/127.0.0.1:0"], connect=connect)
+    _insert(config, "scouting/gossip", ROS2_GOSSIP)
+    return config
 
 
 @dataclass(slots=True)
