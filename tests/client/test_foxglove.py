@@ -1,6 +1,13 @@
 """``gyrotherm record --foxglove-port``: daemon → Zenoh → record → Foxglove WebSocket,
 read by an independent client (the ``websockets`` package speaking the Foxglove
-WebSocket protocol by its v1 spec; CDR decoded by rosbags, not by the SDK)."""
+WebSocket protocol by its v1 spec; CDR decoded by rosbags, not by the SDK).
+
+Subprotocols: foxglove-sdk 0.30's server accepts ``foxglove.sdk.v1`` only, the new name
+of ``foxglove.websocket.v1`` (the same messages: Foxglove's stated position, cited by
+Lichtblick's PR #819 that added the new name). Current Foxglove (and Lichtblick from
+its release with that PR) offer it; a client offering only ``foxglove.websocket.v1``
+(older Lichtblick, roslibjs-foxglove) is refused with HTTP 400, as with
+foxglove_bridge ≥ 3. Each is tested alone below."""
 
 from __future__ import annotations
 
@@ -24,7 +31,8 @@ from streamkit import run_frames
 TIMEOUT_S = 20.0
 DEG = math.pi / 180
 SUBPROTOCOLS: list[Any] = ["foxglove.websocket.v1", "foxglove.sdk.v1"]
-TOPICS = {f"/gyrotherm/imu0/{t}" for t in ("imu", "imu_raw", "temperature", "state", "health")}
+TOPICS = {f"/gyrotherm/imu0/{t}" for t in ("imu", "imu_raw", "temperature", "delta_t", "bias",
+                                           "state", "health")}
 
 
 def _text(ws: Any) -> dict[str, Any]:
@@ -69,7 +77,9 @@ def test_foxglove_live_view(daemon: tuple[str, int], runs: list[Run]) -> None:
             imu_ch = by_topic["/gyrotherm/imu0/imu"]
             assert imu_ch["encoding"] == "cdr" and imu_ch["schemaName"] == "sensor_msgs/msg/Imu"
             assert imu_ch["schemaEncoding"] == "ros2msg"
-            assert by_topic["/gyrotherm/imu0/state"]["schemaEncoding"] == "jsonschema"
+            assert {c["encoding"] for c in channels.values()} == {"cdr"}
+            assert by_topic["/gyrotherm/imu0/state"]["schemaName"] == \
+                "diagnostic_msgs/msg/DiagnosticArray"
             subs = {i: c["topic"] for i, c in enumerate(channels.values())}
             ws.send(json.dumps({"op": "subscribe", "subscriptions": [
                 {"id": i, "channelId": c["id"]} for i, c in enumerate(channels.values())]}))
@@ -108,6 +118,8 @@ def test_foxglove_live_view(daemon: tuple[str, int], runs: list[Run]) -> None:
         assert [av.x, av.y, av.z] == pytest.approx([x * DEG for x in sent.rate_dps], rel=1e-15)
         assert m.header.frame_id == "imu0"
         assert t_ns == round(sent.receive_time_s * 1e9)
+        # header stamps: the receive clock by default (ROS time)
+        assert (m.header.stamp.sec, m.header.stamp.nanosec) == divmod(t_ns, 1_000_000_000)
     raw = [store.deserialize_cdr(d, "sensor_msgs/msg/Imu") for _, d in
            got["/gyrotherm/imu0/imu_raw"]]  # fmt: skip
     assert [r.angular_velocity.x for r in raw] == pytest.approx(
@@ -115,6 +127,34 @@ def test_foxglove_live_view(daemon: tuple[str, int], runs: list[Run]) -> None:
     temps = [store.deserialize_cdr(d, "sensor_msgs/msg/Temperature").temperature
              for _, d in got["/gyrotherm/imu0/temperature"]]  # fmt: skip
     assert temps[:len(states)] == [s.temperature_c for s in states]
-    st = [json.loads(d) for _, d in got["/gyrotherm/imu0/state"]][:len(states)]
-    assert [x["delta_t_c"] for x in st] == [s.delta_t_c for s in states]
-    assert [x["flags"] for x in st] == [int(s.flags) for s in states]
+    dts = [store.deserialize_cdr(d, "sensor_msgs/msg/Temperature").temperature
+           for _, d in got["/gyrotherm/imu0/delta_t"]][:len(states)]
+    assert dts == [s.delta_t_c for s in states]
+    st = [store.deserialize_cdr(d, "diagnostic_msgs/msg/DiagnosticArray").status[0]
+          for _, d in got["/gyrotherm/imu0/state"]][:len(states)]
+    assert [dict((kv.key, kv.value) for kv in x.values)["flags"] for x in st] == [
+        f"0x{int(s.flags):x}" for s in states]
+
+
+@pytest.mark.parametrize(("offered", "accepted"), [
+    (["foxglove.sdk.v1"], True), (["foxglove.websocket.v1"], False),
+    (["foxglove.websocket.v1", "foxglove.sdk.v1"], True)])
+def test_each_subprotocol_alone(offered: list[str], accepted: bool) -> None:
+    """What a client offering each subprotocol gets from the live server."""
+    from websockets.exceptions import InvalidStatus
+
+    from gyrotherm.client._foxglove import FoxgloveSink
+
+    sink = FoxgloveSink(port=0)
+    try:
+        url = f"ws://127.0.0.1:{sink.port}"
+        if accepted:
+            with connect(url, subprotocols=offered, open_timeout=TIMEOUT_S) as ws:
+                assert ws.subprotocol == "foxglove.sdk.v1"
+                assert _text(ws)["op"] == "serverInfo"
+        else:
+            with pytest.raises(InvalidStatus) as info:
+                connect(url, subprotocols=offered, open_timeout=TIMEOUT_S)
+            assert info.value.response.status_code == 400
+    finally:
+        sink.close()

@@ -51,10 +51,11 @@ def test_sigterm_finishes_the_file(tmp_path: Path) -> None:
         s = make_reader(f).get_summary()
     assert s is not None
     assert {c.topic for c in s.channels.values()} == {
-        f"/gyrotherm/s/{t}" for t in ("imu", "imu_raw", "temperature", "state", "health")}
+        f"/gyrotherm/s/{t}" for t in ("imu", "imu_raw", "temperature", "delta_t", "bias",
+                                      "state", "health")}
     assert {x.name for x in s.schemas.values()} == {
-        "sensor_msgs/msg/Imu", "sensor_msgs/msg/Temperature", "gyrotherm.State",
-        "gyrotherm.Health"}
+        "sensor_msgs/msg/Imu", "sensor_msgs/msg/Temperature",
+        "geometry_msgs/msg/Vector3Stamped", "diagnostic_msgs/msg/DiagnosticArray"}
 
 
 def test_idle_timeout_ends_a_stream_that_went_silent(tmp_path: Path,

@@ -33,7 +33,14 @@ TIMEOUT_S = 20.0
 DEG = math.pi / 180
 STORE = get_typestore(Stores.ROS2_JAZZY)
 IMU, TEMP = "sensor_msgs/msg/Imu", "sensor_msgs/msg/Temperature"
-DDS = {IMU: "sensor_msgs::msg::dds_::Imu_", TEMP: "sensor_msgs::msg::dds_::Temperature_"}
+VEC, DIAG = "geometry_msgs/msg/Vector3Stamped", "diagnostic_msgs/msg/DiagnosticArray"
+DDS = {IMU: "sensor_msgs::msg::dds_::Imu_", TEMP: "sensor_msgs::msg::dds_::Temperature_",
+       VEC: "geometry_msgs::msg::dds_::Vector3Stamped_",
+       DIAG: "diagnostic_msgs::msg::dds_::DiagnosticArray_"}
+#: every channel record publishes, in order (entity ids 1…7), with its type
+TOPIC_TYPES = (("imu", IMU), ("imu_raw", IMU), ("temperature", TEMP), ("delta_t", TEMP),
+               ("bias", VEC), ("state", DIAG), ("health", DIAG))
+N_TOKENS = 1 + len(TOPIC_TYPES)
 
 
 class Listener:
@@ -89,17 +96,16 @@ def _check_tokens(tokens: list[str], *, domain: int, zid: str, ns: str, node: st
     parts = [t.split("/") for t in tokens]
     nodes = [p for p in parts if p[5] == "NN"]
     pubs = {p[9]: p for p in parts if p[5] == "MP"}
-    assert len(nodes) == 1 and len(pubs) == 3 == len(parts) - 1
+    assert len(nodes) == 1 and len(pubs) == len(TOPIC_TYPES) == len(parts) - 1
     mns = ns.replace("/", "%")
     assert nodes[0] == ["@ros2_lv", str(domain), zid, "0", "0", "NN", "%", mns, node]
     base = "%".join(["", *ns.strip("/").split("/")]) if ns != "/" else ""
-    want = {f"{base}%gyrotherm%{sensor}%{t}": ty for t, ty in
-            (("imu", IMU), ("imu_raw", IMU), ("temperature", TEMP))}  # fmt: skip
+    want = {f"{base}%gyrotherm%{sensor}%{t}": ty for t, ty in TOPIC_TYPES}
     assert set(pubs) == set(want)
     for topic, p in pubs.items():
         assert p[:9] == ["@ros2_lv", str(domain), zid, "0", p[4], "MP", "%", mns, node]
         assert p[10:] == [DDS[want[topic]], STORE.hash_rihs01(want[topic]), "::,10:,:,:,,"]
-    assert sorted(p[4] for p in pubs.values()) == ["1", "2", "3"]
+    assert sorted(int(p[4]) for p in pubs.values()) == list(range(1, len(TOPIC_TYPES) + 1))
     return {topic: p for topic, p in pubs.items()}
 
 
@@ -123,12 +129,12 @@ def test_ros2_end_to_end(daemon: tuple[str, int], runs: list[Run],
             open_bus(interface="virtual", channel=channel) as bus:  # fmt: skip
         argv = ["--vehicle", "testcar", "--sensor", "imu0", "--connect", f"tcp/127.0.0.1:{port}",
                 "--connect", lis.endpoint, "--ros2", "--count", str(len(run)),
-                "--frame-id", "gyro_link", "--json"]  # fmt: skip
+                "--frame-id", "gyro_link", "--json", "--stamp", "sensor"]  # fmt: skip
         rec = threading.Thread(target=lambda: result.update(
             code=record_main(argv, on_ready=lambda _port: ready.set())))
         rec.start()
         assert ready.wait(TIMEOUT_S)
-        declared = lis.token_events(zenoh.SampleKind.PUT, 4)
+        declared = lis.token_events(zenoh.SampleKind.PUT, N_TOKENS)
         assert sorted(declared) == lis.alive_tokens()
         assert sub.wait_for(lambda s: s.health.received >= 2, timeout_s=TIMEOUT_S)
         t_before = time.time_ns()
@@ -138,7 +144,7 @@ def test_ros2_end_to_end(daemon: tuple[str, int], runs: list[Run],
         t_after = time.time_ns()
         assert not rec.is_alive() and result["code"] == 0
         assert sub.wait_for(lambda s: s.rate.received >= len(run), timeout_s=TIMEOUT_S)
-        gone = lis.token_events(zenoh.SampleKind.DELETE, 4)
+        gone = lis.token_events(zenoh.SampleKind.DELETE, N_TOKENS)
         assert sorted(gone) == sorted(declared)
         assert lis.alive_tokens() == []
         summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
@@ -151,7 +157,7 @@ def test_ros2_end_to_end(daemon: tuple[str, int], runs: list[Run],
     for key, payload, att in samples:
         by_key.setdefault(key, []).append((payload, att))
     keys = {t: f"0/gyrotherm/imu0/{t}/{DDS[ty]}/{STORE.hash_rihs01(ty)}"
-            for t, ty in (("imu", IMU), ("imu_raw", IMU), ("temperature", TEMP))}  # fmt: skip
+            for t, ty in TOPIC_TYPES}
     assert set(by_key) == set(keys.values())
     assert {t: v["keyexpr"] for t, v in summary["ros2"]["topics"].items()} == {
         f"/gyrotherm/imu0/{t}": k for t, k in keys.items()}
@@ -204,10 +210,10 @@ def test_sigterm_undeclares_the_tokens() -> None:
         assert proc.stderr is not None
         line = proc.stderr.readline()  # printed once subscribed
         assert "ROS 2 node /robot1/br domain 7 (rmw_zenoh)" in line
-        declared = lis.token_events(zenoh.SampleKind.PUT, 4)
+        declared = lis.token_events(zenoh.SampleKind.PUT, N_TOKENS)
         assert lis.alive_tokens() == sorted(declared)
         stdout = stdout_after_sigterm(proc, TIMEOUT_S * 3)
-        assert sorted(lis.token_events(zenoh.SampleKind.DELETE, 4)) == sorted(declared)
+        assert sorted(lis.token_events(zenoh.SampleKind.DELETE, N_TOKENS)) == sorted(declared)
         assert lis.alive_tokens() == []
     assert proc.returncode == 1
     summary = json.loads(stdout)
@@ -215,7 +221,7 @@ def test_sigterm_undeclares_the_tokens() -> None:
     ros = summary["ros2"]
     assert (ros["domain_id"], ros["namespace"], ros["node_name"]) == (7, "/robot1", "br")
     assert {t: v["sent"] for t, v in ros["topics"].items()} == {
-        f"/robot1/gyrotherm/s/{t}": 0 for t in ("imu", "imu_raw", "temperature")}
+        f"/robot1/gyrotherm/s/{t}": 0 for t, _ in TOPIC_TYPES}
     _check_tokens(declared, domain=7, zid=ros["zid"], ns="/robot1", node="br", sensor="s")
     assert lis.data.empty()
 

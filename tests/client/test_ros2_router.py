@@ -197,8 +197,8 @@ def test_a_ros2_node_behind_a_router_gets_every_sample_and_the_graph(
             code=record_main(argv, on_ready=lambda _p: ready.set())))
         rec.start()
         assert ready.wait(TIMEOUT_S)
-        declared = node.token_events(zenoh.SampleKind.PUT, 4)
-        assert len(declared) == 4, declared  # the node and its three publishers
+        declared = node.token_events(zenoh.SampleKind.PUT, 8)
+        assert len(declared) == 8, declared  # the node and its seven publishers
         with open_bus(interface="virtual", channel=channel) as bus:
             for msg in run_frames(run, FrameEncoder()):
                 bus.send(msg)
@@ -206,7 +206,7 @@ def test_a_ros2_node_behind_a_router_gets_every_sample_and_the_graph(
         rec.join(TIMEOUT_S)
         assert not rec.is_alive() and result["code"] == 0
         assert received == len(run)
-        gone = node.token_events(zenoh.SampleKind.DELETE, 4)
+        gone = node.token_events(zenoh.SampleKind.DELETE, 8)
         assert sorted(gone) == sorted(declared)
     finally:
         node.close()

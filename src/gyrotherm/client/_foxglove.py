@@ -3,11 +3,15 @@
 Imported only when ``gyrotherm record --foxglove-port`` is given (the optional
 ``foxglove`` extra); the daemon never imports it. The server binds 127.0.0.1 by
 default (``--foxglove-host`` to change it: it has no authentication) and speaks the
-``foxglove.websocket.v1`` subprotocol: a client receives ``serverInfo`` and
-``advertise`` (one channel per topic, with its schema), subscribes, and then gets
-binary message-data frames (opcode 1, subscription id, log time in ns, payload).
-The channels and payloads are those of the MCAP file (sensor_msgs/Imu as ros2msg/cdr
-in rad/s, sensor_msgs/Temperature, gyrotherm.State/Health as jsonschema/json).
+``foxglove.sdk.v1`` subprotocol, the only one foxglove-sdk 0.30's server accepts: the
+new name of ``foxglove.websocket.v1``, with the same messages. A client receives
+``serverInfo`` and ``advertise`` (one channel per topic, with its schema), subscribes,
+and then gets binary message-data frames (opcode 1, subscription id, log time in ns,
+payload). Current Foxglove offers ``foxglove.sdk.v1``; a client offering only
+``foxglove.websocket.v1`` (older Lichtblick releases) gets HTTP 400, as from
+foxglove_bridge ≥ 3 (the SDK has no option to accept the old name). The channels and
+payloads are those of the MCAP file (:mod:`gyrotherm.client._channels`: all ROS 2
+CDR).
 
 The server has its own :class:`foxglove.Context`, so nothing else logged through
 the SDK's global context in the same process reaches it.

@@ -6,7 +6,10 @@ rmw_zenoh_cpp's key expressions, liveliness tokens and attachment:
 
 Client side, like ``gyrotherm listen``: subscribes to ``gyrotherm/<vehicle>/<sensor>/*``
 and writes the channels of :mod:`gyrotherm.client._channels` (sensor_msgs/Imu in rad/s,
-sensor_msgs/Temperature, gyrotherm's state and health as JSON). It first asks the
+sensor_msgs/Temperature, geometry_msgs/Vector3Stamped, the state and health as
+diagnostic_msgs/DiagnosticArray: all ROS 2 CDR, so ``ros2 bag play`` takes the file;
+JSON state and health only with ``--json-channels``). Header stamps: the receive clock
+by default (``--stamp sensor`` for the gyro's own). It first asks the
 daemon's calibration queryable for the calibration's residual noise (the
 angular-velocity covariance; all zeros, "unknown", when there is none or no reply
 within ``--calibration-timeout-s``). It stops after ``--duration-s``, after
@@ -36,7 +39,7 @@ from typing import Any
 from gyrotherm._errors import CalibrationError, ConfigError, DecodeError
 from gyrotherm._signals import stop_on_signals
 from gyrotherm._zenoh import DEFAULT_CONNECT, open_session, zenoh_error_text
-from gyrotherm.client._channels import Fanout, McapSink, Sink
+from gyrotherm.client._channels import STAMPS, Fanout, McapSink, Sink
 from gyrotherm.client._ros import residual_variance_dps2
 from gyrotherm.client._ros2 import RmwZenohSink, check_names, ros2_session_config
 from gyrotherm.client._subscriber import Subscriber
@@ -79,6 +82,15 @@ def _parser() -> argparse.ArgumentParser:
                    help=f"with --ros2: node name (default {ROS_NODE_NAME})")
     p.add_argument("--frame-id", default=None,
                    help="ROS header frame_id (default: the sensor name)")
+    p.add_argument("--stamp", choices=STAMPS, default="receive",
+                   help="clock in the ROS headers: receive (the daemon's receive time, the "
+                   "system clock: what rviz, robot_localization and message filters expect) "
+                   "or sensor (the gyro's own time stamps: exact sample spacing, often "
+                   "seconds since power-on) (default receive)")
+    p.add_argument("--json-channels", action="store_true",
+                   help="also write the state and health as JSON (…/state_json, "
+                   "…/health_json); such an MCAP mixes encodings and ros2 bag play "
+                   "refuses it (default: off, every channel ROS 2 CDR)")
     p.add_argument("--duration-s", type=float, default=None,
                    help="stop after S seconds (default: until --count, SIGINT or SIGTERM)")
     p.add_argument("--count", type=int, default=None,
@@ -199,7 +211,8 @@ def _record(args: argparse.Namespace, session: Any, stop: threading.Event,
             ros = RmwZenohSink(session, domain_id=args.ros_domain_id,
                                namespace=args.ros_namespace, node_name=args.ros_node_name)
             sinks.append(ros)
-        fan = Fanout(sinks, sensor=args.sensor, frame_id=args.frame_id, covariance_dps2=cov)
+        fan = Fanout(sinks, sensor=args.sensor, frame_id=args.frame_id, covariance_dps2=cov,
+                     stamp=args.stamp, json_channels=args.json_channels)
     except BaseException:
         for sink in reversed(sinks):
             sink.close()

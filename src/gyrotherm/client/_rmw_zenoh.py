@@ -45,6 +45,10 @@ TYPE_HASHES = {
         "RIHS01_7d9a00ff131080897a5ec7e26e315954b8eae3353c3f995c55faf71574000b5b",
     "sensor_msgs/msg/Temperature":
         "RIHS01_72514a14126ab9f8a9abec974c78e5610a367b59db5da355ff1fb982d5bad4b8",
+    "geometry_msgs/msg/Vector3Stamped":
+        "RIHS01_d4829622288cbb443886e7ea94ea5671a3b1be6bab4ad04224432a65f7d7887a",
+    "diagnostic_msgs/msg/DiagnosticArray":
+        "RIHS01_5a8a36efb05fb25070fa0fb3810290c0e6cd4862b54a8fb975a1ee8dc55a333e",
 }  # fmt: skip
 ADMIN_SPACE = "@ros2_lv"
 NODE, PUBLISHER = "NN", "MP"

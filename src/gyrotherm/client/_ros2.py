@@ -2,15 +2,16 @@
 wire layout, so that ``ros2 topic echo`` (``RMW_IMPLEMENTATION=rmw_zenoh_cpp``, same
 Zenoh router) sees them.
 
-A :class:`~gyrotherm.client._channels.Sink`: only the CDR channels (sensor_msgs/Imu
-``imu``/``imu_raw``, sensor_msgs/Temperature ``temperature``) are published; the JSON
-ones (state, health) have no ROS 2 type and are skipped. On the given zenoh session
-it declares, in this order,
+A :class:`~gyrotherm.client._channels.Sink`: the CDR channels (sensor_msgs/Imu
+``imu``/``imu_raw``, sensor_msgs/Temperature ``temperature``/``delta_t``,
+geometry_msgs/Vector3Stamped ``bias``, diagnostic_msgs/DiagnosticArray
+``state``/``health``) are published; JSON channels (on request only) have no ROS 2
+type and are skipped. On the given zenoh session it declares, in this order,
 
 * the node's liveliness token (``NN``, node id 0, enclave "/"),
 * for each channel a zenoh publisher on the topic key expression (reliable, congestion
   control DROP: rmw_zenoh's RELIABLE + KEEP_LAST) and the publisher's liveliness token
-  (``MP``, entity ids 1, 2, 3 in channel order, QoS
+  (``MP``, entity ids 1, 2, … in channel order, QoS
   :data:`~gyrotherm.client._rmw_zenoh.PUBLISHER_QOS`),
 
 and every ``put`` carries the rmw_zenoh attachment (sequence number from 1 per
@@ -50,6 +51,10 @@ from gyrotherm._zenoh import _insert, session_config
 from gyrotherm.client import _rmw_zenoh as rz
 from gyrotherm.client._channels import ChannelSpec
 
+#: The channels published with ``--ros2``: every CDR channel, in this order (entity
+#: ids 1, 2, …).
+ROS2_TOPICS = ("imu", "imu_raw", "temperature", "delta_t", "bias", "state", "health")
+
 #: rmw_zenoh's gossip settings for a node (DEFAULT_RMW_ZENOH_SESSION_CONFIG.json5).
 ROS2_GOSSIP: dict[str, Any] = {
     "enabled": True, "multihop": False,
@@ -84,7 +89,7 @@ def check_names(sensor: str, *, domain_id: int, namespace: str, node_name: str) 
     rz.check_domain_id(domain_id)
     rz.check_node_name(node_name)
     return [rz.topic_name(namespace, f"gyrotherm/{sensor}/{t}")
-            for t in ("imu", "imu_raw", "temperature")]  # fmt: skip
+            for t in ROS2_TOPICS]  # fmt: skip
 
 
 class RmwZenohSink:
