@@ -1,7 +1,7 @@
 """estimate_series (float arithmetic, flight-log scale) against the filterpy estimator.
 
-The reference is the daemon's :class:`TemperatureEstimator` fed row by row with the
-same slot rule; both must agree to 1e-9 on every row, through gating, spike
+The reference is :class:`TemperatureEstimator` on its filterpy engine fed row by row
+with the same slot rule; both must agree to 1e-9 on every row, through gating, spike
 rejection, re-initialisation after repeated rejections, time steps back and
 forward, non-finite readings, held (repeated) readings and F/Q reuse.
 """
@@ -20,7 +20,7 @@ from gyrotherm.estimators import EstimatorConfig, TemperatureEstimator, _series,
 
 def reference(time_s: np.ndarray, temperature_c: np.ndarray,
               cfg: EstimatorConfig) -> tuple[np.ndarray, np.ndarray]:
-    est = TemperatureEstimator(cfg)
+    est = TemperatureEstimator(cfg, engine="filterpy")
     n = len(time_s)
     if cfg.update_period_s > 0:
         slot = np.floor(time_s / cfg.update_period_s + 1e-9)

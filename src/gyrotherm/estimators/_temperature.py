@@ -29,18 +29,34 @@ forgets its state (``non_finite_resets``): an initialised filter's ``x`` and
 ``P`` are always finite. The daemon's pipeline keeps absurd time stamps away
 from the filter altogether (``max_time_jump_s``, docs/model.md).
 
-The filterpy ``KalmanFilter`` is private: callers see frozen
-:class:`TemperatureEstimate` values, never the mutable ``x`` / ``P``.
+Engines. The filter is written out for its two states in float arithmetic
+(``engine="python"``, the default and the daemon's): the same operations, in
+the same order, as filterpy's ``KalmanFilter.predict`` (``x ← F x``,
+``P ← F P Fᵀ + Q``) and ``update`` (Joseph form), with the products by the
+zeros and ones of ``F``, ``H`` and ``I − K H`` left out::
+
+    predict:  T ← T + dt·Ṫ;  P ← F P Fᵀ + Q
+    update:   y = z − T,  s = p00 + R,  k = [p00, p10] / s,  x ← x + k·y
+              P ← (I − k H) P (I − k H)ᵀ + R·k kᵀ
+
+It imports neither filterpy nor scipy (filterpy's package ``__init__`` imports
+scipy.stats, scipy.linalg and scipy.ndimage: ≈ 1 s and 70 MB of the daemon's
+start-up). ``engine="filterpy"`` runs the same estimator on filterpy's
+``KalmanFilter`` (imported then): the reference that tests check the default
+engine against, to 1e-9 on every field of every estimate
+(``tests/estimators/test_engines.py``).
+
+The filter's state is private: callers see frozen :class:`TemperatureEstimate`
+values, never the mutable ``x`` / ``P``.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
 from numpy.typing import NDArray
 
 from gyrotherm._errors import ConfigError
@@ -51,6 +67,11 @@ FloatArray = NDArray[np.float64]
 #: far beyond any gap over which a prediction still means something
 #: (σ_T = √(q·dt³/3) ≈ 180 °C at the default q and dt = 10⁶ s).
 MAX_PREDICT_S = 1e6
+
+Engine = Literal["python", "filterpy"]
+#: The estimator's engines: ``python`` (float arithmetic, the default) and ``filterpy``
+#: (filterpy's ``KalmanFilter``, the reference).
+ENGINES: tuple[Engine, ...] = ("python", "filterpy")
 
 
 @dataclass(frozen=True)
@@ -149,23 +170,43 @@ class TemperatureEstimate:
 
 
 class TemperatureEstimator:
-    """Online T / ΔT estimator (filterpy Kalman filter behind a typed API)."""
+    """Online T / ΔT estimator: a two-state Kalman filter behind a typed API.
 
-    def __init__(self, config: EstimatorConfig | None = None) -> None:
+    ``engine`` (keyword): ``"python"`` (default) runs the filter in float arithmetic;
+    ``"filterpy"`` runs it on filterpy's ``KalmanFilter`` (the reference; imports
+    filterpy and scipy). Both give the same estimates (to 1e-9; module docstring).
+    """
+
+    def __init__(self, config: EstimatorConfig | None = None, *,
+                 engine: Engine = "python") -> None:
         self._cfg = config or EstimatorConfig()
-        self._kf = KalmanFilter(dim_x=2, dim_z=1)
-        self._kf.H = np.array([[1.0, 0.0]])
-        self._kf.R = np.array([[self._cfg.measurement_variance_c2]])
+        if engine not in ENGINES:
+            raise ConfigError(f"estimator engine {engine!r}: expected one of {list(ENGINES)}")
+        self._engine: Engine = engine
+        self._r_c2 = self._cfg.measurement_variance_c2
+        # the state x = [x0, x1] (°C, °C/s) and P = [[p00, p01], [p10, p11]]; with the
+        # filterpy engine, copies of its x and P after every step (float() of each entry)
+        self._x0 = self._x1 = 0.0
+        self._p00 = self._p01 = self._p10 = self._p11 = 0.0
+        # F and Q of the cached dt (s): Q = [[q00, q01], [q01, q11]]
+        self._dt = math.nan
+        self._q00 = self._q01 = self._q11 = math.nan
+        self._kf: Any = None
+        if engine == "filterpy":
+            from filterpy.kalman import KalmanFilter  # the reference: scipy comes with it
+
+            self._kf = KalmanFilter(dim_x=2, dim_z=1)
+            self._kf.H = np.array([[1.0, 0.0]])
+            self._kf.R = np.array([[self._r_c2]])
+            self._z = np.zeros((1, 1))
+            self._f = np.eye(2)
+            self._q = np.zeros((2, 2))
         self._time_s: float | None = None
         self._last_reading_s: float | None = None
         self._slot = math.nan  # floor(t / update_period_s) of the latest reading offered
         self._updates = 0
         self._rejections = 0
         self._rejected = False
-        self._z = np.zeros((1, 1))
-        self._dt = math.nan
-        self._f = np.eye(2)
-        self._q = np.zeros((2, 2))
         self.rejected_total = 0
         """Readings gated out as spikes since construction."""
         self.reinitialisations = 0
@@ -183,19 +224,34 @@ class TemperatureEstimator:
         return self._cfg
 
     @property
+    def engine(self) -> Engine:
+        """``"python"`` or ``"filterpy"`` (see the class docstring)."""
+        return self._engine
+
+    @property
     def initialised(self) -> bool:
         return self._time_s is not None
 
     def _init(self, time_s: float, temperature_c: float) -> None:
-        self._kf.x = np.array([[temperature_c], [0.0]])
-        self._kf.P = np.diag(
-            [self._cfg.measurement_variance_c2, self._cfg.initial_rate_std_c_per_s**2]
-        )
+        p00, p11 = self._r_c2, self._cfg.initial_rate_std_c_per_s**2
+        self._x0, self._x1 = temperature_c, 0.0
+        self._p00, self._p01, self._p10, self._p11 = p00, 0.0, 0.0, p11
+        if self._kf is not None:
+            self._kf.x = np.array([[temperature_c], [0.0]])
+            self._kf.P = np.diag([p00, p11])
+            self._mirror()
         self._time_s = time_s
         self._last_reading_s = time_s
         self._rejections = 0
         self._rejected = False
         self._updates = 1
+
+    def _mirror(self) -> None:
+        """filterpy engine: copy its x and P into the float state."""
+        x, p = self._kf.x, self._kf.P
+        self._x0, self._x1 = float(x[0, 0]), float(x[1, 0])
+        self._p00, self._p01 = float(p[0, 0]), float(p[0, 1])
+        self._p10, self._p11 = float(p[1, 0]), float(p[1, 1])
 
     def reset(self) -> None:
         """Forget the state: the next reading initialises the filter (counters kept)."""
@@ -207,9 +263,8 @@ class TemperatureEstimator:
         self._rejected = False
 
     def _finite(self) -> bool:
-        x, p = self._kf.x, self._kf.P
-        return math.isfinite(float(x[0, 0]) + float(x[1, 0])) and math.isfinite(
-            float(p[0, 0]) + float(p[0, 1]) + float(p[1, 0]) + float(p[1, 1]))
+        return math.isfinite(self._x0 + self._x1) and math.isfinite(
+            self._p00 + self._p01 + self._p10 + self._p11)
 
     def _predict_to(self, time_s: float) -> None:
         """Predict to ``time_s``; the caller guarantees 0 < dt ≤ MAX_PREDICT_S or
@@ -224,11 +279,46 @@ class TemperatureEstimator:
         # temperature by < 1e-9 * dt * dT/dt (≈ 1e-11 °C at 0.1 °C/s, 0.1 s).
         if not abs(dt - self._dt) <= 1e-9 * dt:  # (True while _dt is NaN)
             q = self._cfg.process_noise_c2_per_s3
-            self._f = np.array([[1.0, dt], [0.0, 1.0]])
-            self._q = q * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
+            self._q00, self._q01, self._q11 = q * (dt**3 / 3.0), q * (dt**2 / 2.0), q * dt
             self._dt = dt
-        self._kf.predict(F=self._f, Q=self._q)
+            if self._kf is not None:
+                self._f = np.array([[1.0, dt], [0.0, 1.0]])
+                self._q = q * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
+        if self._kf is not None:
+            self._kf.predict(F=self._f, Q=self._q)
+            self._mirror()
+        else:  # x ← F x;  P ← F P Fᵀ + Q, with A = F P
+            c = self._dt
+            p10, p11 = self._p10, self._p11
+            self._x0 = self._x0 + c * self._x1
+            a00, a01 = self._p00 + c * p10, self._p01 + c * p11
+            self._p00 = a00 + a01 * c + self._q00
+            self._p01 = a01 + self._q01
+            self._p10 = p10 + p11 * c + self._q01
+            self._p11 = p11 + self._q11
         self._time_s = time_s
+
+    def _kalman_update(self, temperature_c: float) -> None:
+        """Fuse the reading (°C) into the predicted state: filterpy's ``update``."""
+        if self._kf is not None:
+            self._z[0, 0] = temperature_c
+            self._kf.update(self._z)
+            self._mirror()
+            return
+        r = self._r_c2
+        p00, p01, p10, p11 = self._p00, self._p01, self._p10, self._p11
+        y = temperature_c - self._x0
+        si = 1.0 / (p00 + r)
+        k0, k1 = p00 * si, p10 * si
+        self._x0 = self._x0 + k0 * y
+        self._x1 = self._x1 + k1 * y
+        i00 = 1.0 - k0  # I − k H = [[i00, 0], [−k1, 1]];  A = (I − k H) P
+        a00, a01 = i00 * p00, i00 * p01
+        a10, a11 = p10 - k1 * p00, p11 - k1 * p01
+        self._p00 = a00 * i00 + k0 * r * k0
+        self._p01 = a01 - a00 * k1 + k0 * r * k1
+        self._p10 = a10 * i00 + k1 * r * k0
+        self._p11 = a11 - a10 * k1 + k1 * r * k1
 
     def update(self, time_s: float, temperature_c: float) -> TemperatureEstimate:
         """Predict to ``time_s`` (s) and fuse the reading ``temperature_c`` (°C).
@@ -275,8 +365,8 @@ class TemperatureEstimator:
             self.non_finite_resets += 1
             self._init(time_s, temperature_c)
             return
-        innovation = temperature_c - float(self._kf.x[0, 0])
-        s = float(self._kf.P[0, 0]) + self._cfg.measurement_variance_c2
+        innovation = temperature_c - self._x0
+        s = self._p00 + self._r_c2
         if innovation * innovation > self._cfg.gate_sigma**2 * s:
             self._rejections += 1
             self.rejected_total += 1
@@ -285,8 +375,7 @@ class TemperatureEstimator:
                 self.reinitialisations += 1
                 self._init(max(time_s, self._time_s), temperature_c)
             return
-        self._z[0, 0] = temperature_c
-        self._kf.update(self._z)
+        self._kalman_update(temperature_c)
         if not self._finite():
             self.non_finite_resets += 1
             self._init(max(time_s, self._time_s), temperature_c)
@@ -297,7 +386,10 @@ class TemperatureEstimator:
         self._last_reading_s = max(time_s, self._last_reading_s or time_s)
 
     def _state(self) -> tuple[float, float]:
-        return float(self._kf.x[0, 0]), float(self._kf.x[1, 0])
+        return self._x0, self._x1
+
+    def _covariance(self) -> tuple[float, float, float, float]:
+        return self._p00, self._p01, self._p10, self._p11
 
     def predict(self, time_s: float) -> TemperatureEstimate:
         """Advance to ``time_s`` without a reading (predict-only). A non-finite
@@ -322,16 +414,16 @@ class TemperatureEstimator:
             return TemperatureEstimate(t, nan, nan, nan, nan, nan, nan, True, self._rejected, 0)
         forced_stale = time_s is not None and not math.isfinite(time_s)
         now = self._time_s if time_s is None or forced_stale else max(time_s, self._time_s)
-        x, p = self._kf.x, self._kf.P
         tau = self._cfg.tau_s
-        rate_std = math.sqrt(max(float(p[1, 1]), 0.0))
+        x1 = self._x1
+        rate_std = math.sqrt(max(self._p11, 0.0))
         assert self._last_reading_s is not None
         return TemperatureEstimate(
             time_s=now,
-            temperature_c=float(x[0, 0]),
-            rate_c_per_s=float(x[1, 0]),
-            delta_t_c=tau * float(x[1, 0]),
-            temperature_std_c=math.sqrt(max(float(p[0, 0]), 0.0)),
+            temperature_c=self._x0,
+            rate_c_per_s=x1,
+            delta_t_c=tau * x1,
+            temperature_std_c=math.sqrt(max(self._p00, 0.0)),
             rate_std_c_per_s=rate_std,
             delta_t_std_c=tau * rate_std,
             stale=forced_stale or (now - self._last_reading_s) > self._cfg.stale_after_s,
