@@ -3,7 +3,7 @@
 * ``gyrotherm run --config FILE`` in a fresh interpreter, driven like systemd drives
   it (``NOTIFY_SOCKET``, READY=1, frames through the pipeline to a subscriber,
   SIGTERM), then its ``sys.modules``: no simulator, no analysis, no plotting, no
-  client library, no scipy.signal (which only the simulator used).
+  client library, no scipy, no filterpy.
 * Layering: ``gyrotherm.daemon``, ``gyrotherm.bus`` and ``gyrotherm.client`` never
   reach ``gyrotherm.sim`` (nor ``gyrotherm.analysis``): statically, through every
   ``gyrotherm`` import in every reachable module (function-level imports included,
@@ -47,7 +47,8 @@ NOT_ON_RUN_PATH = (
     "gyrotherm.analysis",  # the offline diagnosis (matplotlib in its report)
     "gyrotherm.client",  # the subscriber library: the daemon publishes, never subscribes
     "matplotlib",
-    "scipy.signal",
+    "scipy",  # scipy.signal through the simulator, scipy.stats through filterpy (issue 22)
+    "filterpy",  # the estimator's reference engine only; the daemon's runs in floats
 )
 #: Never reached from the vehicle packages.
 NOT_FROM_VEHICLE = ("gyrotherm.sim", "gyrotherm.analysis")
