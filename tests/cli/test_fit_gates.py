@@ -114,14 +114,15 @@ def test_rate_in_the_wrong_unit_is_refused(runs: list[Run], tmp_path: Path,
 
 def test_evaluate_with_nothing_at_rest_exits_2(runs: list[Run], tmp_path: Path,
                                                capsys: pytest.CaptureFixture[str]) -> None:
-    """A 25-s log: rest detection (30-s minimum rest) keeps none of its rows, so there is
-    nothing to score: exit 2 naming the file, not a table of NaN."""
+    """A 25-s log turning at 30 °/s throughout: rest detection keeps none of its rows, so
+    there is nothing to score: exit 2 naming the file, not a table of NaN."""
     files = _write(tmp_path, runs)
     assert main(["-q", "fit", *files, "--out", str(tmp_path / "cal.json")]) == 0
     run = runs[0]
     short = replace(run, name="short", time_s=run.time_s[:25], extra={},
                     temperature_c=run.temperature_c[:25], chamber_c=None, true_bias_dps={},
-                    rates_dps={a: v[:25] for a, v in run.rates_dps.items()})
+                    rates_dps={a: v[:25] + (30.0 if a == "x" else 0.0)
+                               for a, v in run.rates_dps.items()})
     (path,) = _write(tmp_path, [short])
     capsys.readouterr()
     assert main(["-q", "evaluate", "--json", "-", str(tmp_path / "cal.json"), path]) == 2

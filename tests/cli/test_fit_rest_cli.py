@@ -187,9 +187,10 @@ def test_diagnose_refuses_motion_and_names_it(
     out = tmp_path / "d.json"
     assert main(["-q", "diagnose", *runs, "--no-simulation", "--json", str(out)]) == 2
     err = capsys.readouterr().err
-    assert "rest detection found motion in 2 of 2 runs" in err
+    assert "rest detection left rows out of 2 of 2 runs" in err
     for name in ("imu-a-heat-10min", "imu-a-heat-40min"):
-        assert f"{name}: 2 motion segments (69" in err  # the turns start at 700 s
+        assert f"{name}: 2 segments not at rest (69" in err  # the turns start at 700 s
+    assert "rate above 5 °/s" in err  # the reasons, as fit prints them
     assert "--rest all" in err and not out.exists()
 
 
@@ -201,7 +202,7 @@ def test_fit_effects_refuses_motion_with_the_same_message(
                  "warmup"]) == 2
     err = capsys.readouterr().err
     assert "fit --effects needs the gyro at rest" in err
-    assert "imu-a-heat-10min: 2 motion segments (69" in err
+    assert "imu-a-heat-10min: 2 segments not at rest (69" in err
     assert not (tmp_path / "c.json").exists()
 
 

@@ -7,7 +7,6 @@ turns, which follows a gap and which is armed is known row by row."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from gyrotherm.codecs import Run
 from gyrotherm.compensation._rest import RestConfig, detect_rest, rest_of_run
@@ -27,7 +26,6 @@ def _turning_throughout(rate_hz: float = 10.0, duration_s: float = 780.0) -> Run
     return Run(name="turning", time_s=t, temperature_c=30.0 + 0.01 * t, rates_dps=rates)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 18 item 3: reproduced, not fixed yet")
 def test_a_run_turning_throughout_keeps_no_turning_row() -> None:
     """Found by a colleague: all 7801 rows of such a run were kept as rest (the robust
     statistics take the log's own level as 'rest' when nothing in it is still)."""
@@ -42,7 +40,6 @@ def test_a_run_turning_throughout_keeps_no_turning_row() -> None:
     assert report.segments and report.excluded_fraction == 1.0
 
 
-@pytest.mark.xfail(strict=True, reason="issue 18 item 3: reproduced, not fixed yet")
 def test_a_still_run_shorter_than_the_default_minimum_is_kept_and_said_why() -> None:
     """Found by a colleague: a gyro still for 25 s (less than the 30-s minimum rest
     stretch) had every row excluded as 'short rest'."""
@@ -55,7 +52,6 @@ def test_a_still_run_shorter_than_the_default_minimum_is_kept_and_said_why() -> 
     assert "shorter than" in report.note and "25" in report.note
 
 
-@pytest.mark.xfail(strict=True, reason="issue 18 item 3: reproduced, not fixed yet")
 def test_a_logging_gap_ends_a_rest_stretch() -> None:
     """Two still stretches of 20 s each around a 35-s gap: 40 s of rows but no stretch of
     30 s. Rows after the gap turn at 180 °/s for 2 s (a turn partly in the gap): the gap
@@ -73,7 +69,6 @@ def test_a_logging_gap_ends_a_rest_stretch() -> None:
     assert any("logging gap" in s.reasons for s in report.segments)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 18 item 3: reproduced, not fixed yet")
 def test_armed_rows_are_not_rest_even_when_still() -> None:
     """A vehicle armed on the ground (SITL, or motors idling on a soft mount) shows no
     turn; the log's armed state still takes those rows out."""

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from gyrotherm._errors import CalibrationError, ConfigError
+from gyrotherm.cli import _fitrest
 from gyrotherm.cli._inputs import (
     add_input_options,
     load_inputs,
@@ -39,7 +40,7 @@ from gyrotherm.compensation._autopilot import (
     px4_params_file,
 )
 from gyrotherm.compensation._calibration import Calibration
-from gyrotherm.compensation._rest import rest_of_run
+from gyrotherm.compensation._rest import RestConfig
 from gyrotherm.readers import InputSpec, read_runs
 
 
@@ -90,18 +91,18 @@ def _of_device(cal: Calibration, runs: list[Run], what: str) -> list[Run]:
     return mine
 
 
-def _rest_rows(run: Run, mode: str) -> np.ndarray:
-    # a run too short for rest detection is used whole, as fit does (with its note)
+def _rest_rows(run: Run, mode: str, config: RestConfig | None) -> np.ndarray:
+    # fit's own rest decision (_fitrest.rest_of), with the same options
     return np.ones(len(run), dtype=bool) if mode == "all" else \
-        rest_of_run(run, short="keep").rest
+        _fitrest.rest_of(run, config).rest
 
 
 MIN_CUBIC_ROWS = 8
 """Rows the cubic in T needs at least (two per coefficient)."""
 
 
-def fit_cubic(runs: list[Run], mode: str) -> CubicT:
-    masks = [_rest_rows(r, mode) for r in runs]
+def fit_cubic(runs: list[Run], mode: str, config: RestConfig | None = None) -> CubicT:
+    masks = [_rest_rows(r, mode, config) for r in runs]
     kept = sum(int(m.sum()) for m in masks)
     if kept < MIN_CUBIC_ROWS:
         raise CalibrationError(
@@ -115,11 +116,12 @@ def fit_cubic(runs: list[Run], mode: str) -> CubicT:
 
 
 def validation_errors(cal: Calibration, cubic: CubicT, runs: list[Run],
-                      mode: str) -> dict[str, dict[str, float]]:
+                      mode: str, config: RestConfig | None = None
+                      ) -> dict[str, dict[str, float]]:
     """Per axis, pooled over ``runs`` (rest rows): raw, model and cubic errors, °/s."""
     res: dict[str, dict[str, list[np.ndarray]]] = {}
     for run in runs:
-        keep = _rest_rows(run, mode)
+        keep = _rest_rows(run, mode, config)
         if not keep.any():  # nothing to score in this run
             continue
         feats = features(run, cal.estimator)
@@ -160,11 +162,12 @@ def cmd_export(args: argparse.Namespace) -> int:
     fit_runs = _of_device(cal, load_inputs(args), "RUNS") if args.runs else provenance_runs(
         cal, where, spec_from_args(with_recorded_options(args, cal.provenance.get(
             "input_options"))))
-    cubic = fit_cubic(fit_runs, args.rest)
+    rest = _fitrest.rest_config(args)
+    cubic = fit_cubic(fit_runs, args.rest, rest)
     in_sample = not args.validate
     valid = fit_runs if in_sample else _of_device(cal, load_inputs(args, args.validate),
                                                   "--validate")
-    errors = validation_errors(cal, cubic, valid, args.rest)
+    errors = validation_errors(cal, cubic, valid, args.rest, rest)
     written: dict[str, Any] = {}
     if args.px4:
         params = px4_params(cubic, instance=args.instance, device_id=device)
@@ -231,10 +234,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "the calibration's provenance device_id when it is an integer)")
     e.add_argument("--validate", nargs="+", metavar="RUN", help="runs to score both forms "
                    "on (default: the fitting runs, in-sample)")
-    e.add_argument("--rest", choices=("auto", "all"), default="auto",
-                   help="rows used: auto = detected at rest, all = every row (default auto)")
     e.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",
                    help="write the parameters and errors as JSON to FILE (stdout when no FILE, "
                    "instead of the table)")
     add_input_options(e)
+    _fitrest.add_rest_options(e, use="fit the cubic on and score")
     e.set_defaults(func=cmd_export)

@@ -1,8 +1,10 @@
 """``gyrotherm fit``: rest detection (``--rest auto|all``), one calibration per device.
 
-* ``--rest auto`` (default) runs :func:`gyrotherm.compensation._rest.rest_of_run` on
-  every run and masks the motion rows out of the fit; a run found entirely at rest
-  gets no mask, so chamber runs fit exactly as with ``--rest all``.
+* ``--rest auto`` (default) runs :func:`rest_of` on every run and masks the motion rows
+  out of the fit; a run found entirely at rest gets no mask, so chamber runs fit exactly
+  as with ``--rest all``. :func:`rest_of` is the one rest decision of ``fit``,
+  ``evaluate``, ``diagnose`` and ``export``, with one set of thresholds
+  (:func:`rest_config` from the same options).
 * Runs whose metadata ``device_id`` differ (several IMUs in one log, as the readers
   write them) are fitted separately. ``--out`` names the files: a ``{device}`` in it
   is replaced by the device id (characters outside ``A-Za-z0-9._-`` become ``_``);
@@ -36,28 +38,45 @@ def add_rest_options(parser: argparse.ArgumentParser, *, use: str = "fit",
     d = RestConfig()
     g = parser.add_argument_group("rest detection (logs with motion)")
     g.add_argument("--rest", choices=("auto", "all"), default="auto",
-                   help=(auto or f"auto: {use} only rows detected at rest (rate variance, "
-                         "high-pass rate, accelerometer)") + "; all: every row (default auto)")
+                   help=(auto or f"auto: {use} only rows detected at rest (physical limits: "
+                         "rate, armed state, logging gaps; rate variance, high-pass rate, "
+                         "accelerometer)") + "; all: every row (default auto)")
     g.add_argument("--rest-threshold", type=float, default=d.threshold,
                    help=f"robust z-score above which a window is motion (default {d.threshold:g})")
     g.add_argument("--rest-window-s", type=float, default=d.window_s,
                    help=f"window length, s (default {d.window_s:g})")
     g.add_argument("--rest-min-segment-s", type=float, default=d.min_segment_s,
-                   help=f"shortest rest stretch kept, s (default {d.min_segment_s:g})")
+                   help=f"shortest rest stretch kept, s (default {d.min_segment_s:g}; a log "
+                   f"covering less than {d.min_segment_s / d.min_segment_fraction:g} s needs "
+                   f"{d.min_segment_fraction:g} of its time)")
+    g.add_argument("--rest-max-rate-dps", type=float, default=d.max_rate_dps,
+                   help="rate magnitude above which a row is motion whatever else it "
+                   f"shows, °/s (default {d.max_rate_dps:g}; raise it for a gyro whose bias "
+                   "is larger)")
 
 
 def rest_config(args: argparse.Namespace) -> RestConfig:
-    return RestConfig(window_s=args.rest_window_s, threshold=args.rest_threshold,
-                      min_segment_s=args.rest_min_segment_s)
+    """The thresholds from the options of :func:`add_rest_options` (defaults for a
+    command without them)."""
+    d = RestConfig()
+    return RestConfig(window_s=getattr(args, "rest_window_s", d.window_s),
+                      threshold=getattr(args, "rest_threshold", d.threshold),
+                      min_segment_s=getattr(args, "rest_min_segment_s", d.min_segment_s),
+                      max_rate_dps=getattr(args, "rest_max_rate_dps", d.max_rate_dps))
+
+
+def rest_of(run: Run, config: RestConfig | None = None) -> RestReport:
+    """The rest decision of every command: a run too short for the statistical tests
+    keeps the rows within the physical limits, with a note."""
+    return rest_of_run(run, config or RestConfig(), short="keep")
 
 
 def rest_reports(args: argparse.Namespace, runs: Sequence[Run]) -> list[RestReport]:
-    """Rest detection on every run (``--rest auto``; none with ``--rest all``); a run
-    too short for it is kept whole, with a note."""
+    """Rest detection on every run (``--rest auto``; none with ``--rest all``)."""
     if args.rest == "all":
         return []
     config = rest_config(args)
-    return [rest_of_run(r, config, short="keep") for r in runs]
+    return [rest_of(r, config) for r in runs]
 
 
 def mask_motion(feats: Sequence[RunFeatures],
@@ -77,7 +96,7 @@ def print_rest_report(reports: Sequence[RestReport], *, file: Any = None,
         if rep.note:
             print(f"Rest detection: {rep.run}: {rep.note}", file=file)
     if not any(rep.segments for rep in reports):
-        n = sum(1 for rep in reports if not rep.note)
+        n = sum(1 for rep in reports if rep.tested)
         if n:
             print(f"Rest detection: every row at rest ({n} run{'s' if n > 1 else ''})",
                   file=file)
@@ -85,8 +104,9 @@ def print_rest_report(reports: Sequence[RestReport], *, file: Any = None,
         return
     print(f"Rest detection (rows excluded from {use}):", file=file)
     for rep in reports:
+        gaps = f", {rep.gaps} logging gap{'s' if rep.gaps > 1 else ''}" if rep.gaps else ""
         print(f"  {rep.run}: {len(rep.segments)} segments, {rep.excluded_s:.1f} of "
-              f"{rep.total_s:.1f} s ({100 * rep.excluded_fraction:.2f} %)", file=file)
+              f"{rep.total_s:.1f} s ({100 * rep.excluded_fraction:.2f} %){gaps}", file=file)
         for s in rep.segments:
             print(f"    {s.start_s:10.2f} – {s.end_s:10.2f} s: {', '.join(s.reasons)}",
                   file=file)
@@ -95,19 +115,21 @@ def print_rest_report(reports: Sequence[RestReport], *, file: Any = None,
 
 def refuse_motion(reports: Sequence[RestReport], *, command: str) -> None:
     """``--rest auto`` for commands that need every row (the diagnosis, ``fit
-    --effects``): a ConfigError naming each run with motion and its first segments."""
+    --effects``): a ConfigError naming each run with rows left out, its first segments
+    and why (the reasons ``fit`` and ``evaluate`` print for the same rows)."""
     moving = [rep for rep in reports if rep.segments]
     if not moving:
         return
     lines = []
     for rep in moving:
-        spans = ", ".join(f"{s.start_s:.1f}–{s.end_s:.1f} s" for s in rep.segments[:3])
+        spans = ", ".join(f"{s.start_s:.1f}–{s.end_s:.1f} s: {'/'.join(s.reasons)}"
+                          for s in rep.segments[:3])
         more = f" and {len(rep.segments) - 3} more" if len(rep.segments) > 3 else ""
-        lines.append(f"{rep.run}: {len(rep.segments)} motion segments ({spans}{more}), "
+        lines.append(f"{rep.run}: {len(rep.segments)} segments not at rest ({spans}{more}), "
                      f"{rep.excluded_s:.1f} of {rep.total_s:.1f} s")
     raise ConfigError(
         f"{command} needs the gyro at rest over whole runs (the effects' state runs "
-        "through every row), and rest detection found motion in "
+        "through every row), and rest detection left rows out of "
         f"{len(moving)} of {len(reports)} runs: " + "; ".join(lines) + ". Fit the paper "
         "model on the rest rows with `gyrotherm fit` (--rest auto), or pass --rest all "
         "if the gyro was in fact still (a vibrating bench) to use every row")
