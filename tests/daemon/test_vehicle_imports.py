@@ -4,10 +4,13 @@ libraries, simulator or analysis (issue 22, "a lean vehicle daemon").
 A fresh interpreter imports what ``gyrotherm run`` imports (the CLI entry, its parser, the
 ``run`` command's module, the daemon, the codecs, the estimators, the compensation, the
 bus, the Zenoh helpers) and then *runs* the daemon's pipeline in-process: CAN frames of a
-simulated chamber run (read from a run file) → decode → Kalman T/ΔT → compensation →
+simulated chamber run (rows handed over as JSON) → decode → Kalman T/ΔT → compensation →
 wire payloads, so that whatever the per-frame path imports when it runs is in its module
-table too. The parent checks the corrected rates against offline compensation (to 1e-9
-°/s: the child really ran the estimator) and the module table against the offline list.
+table too. The offline parts of the vehicle packages (run files, candump logs, wire
+decoding, fitting, the series estimator, the flight-log readers, the offline commands)
+stay out as well: the packages' ``__init__`` load them on first use. The parent checks
+the corrected rates against offline compensation (to 1e-9 °/s: the child really ran the
+estimator) and the module table against the offline list.
 
 A control child builds the estimator on its filterpy engine: there, filterpy and scipy
 *are* in the table (the check sees them when they are loaded).
@@ -24,10 +27,12 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import gyrotherm
-from gyrotherm.codecs import Run, write_run
+import gyrotherm.codecs
+from gyrotherm.codecs import Run, decode_rate
 from gyrotherm.compensation import Calibration
 from streamkit import assert_offline_compensation
 
@@ -38,40 +43,45 @@ SRC = Path(gyrotherm.__file__).resolve().parent
 OFFLINE = ("scipy", "filterpy", "matplotlib", "pandas", "gyrotherm.analysis", "gyrotherm.sim",
            "gyrotherm.client", "pyulog", "pymavlink", "rosbags", "mcap")
 
+#: Offline modules inside the vehicle packages, lazy since issue 22: the daemon needs none.
+OFFLINE_PARTS = ("gyrotherm.readers", "gyrotherm.cli._offline", "gyrotherm.cli._diagnose",
+                 "gyrotherm.cli._demo", "gyrotherm.cli._export", "gyrotherm.cli._import",
+                 "gyrotherm.codecs._runfile", "gyrotherm.codecs._candump",
+                 "gyrotherm.codecs._wire_decode", "gyrotherm.compensation._fit",
+                 "gyrotherm.estimators._series")
+
 VEHICLE_CHILD = textwrap.dedent("""
     import json, sys
 
-    from gyrotherm.cli import build_parser, main  # the console script's entry point
-    args = build_parser().parse_args(["run", "--config", "gyrotherm.toml"])
+    from gyrotherm.cli import main, parse_args  # the console script's entry point
+    args = parse_args(["run", "--config", "gyrotherm.toml"])  # as main() parses it
     __import__(args.func.__module__)  # what `gyrotherm run` imports before it starts
     import gyrotherm._zenoh, gyrotherm.bus, gyrotherm.codecs, gyrotherm.compensation
     import gyrotherm.daemon, gyrotherm.estimators
     from gyrotherm.codecs import FrameDecoder, FrameEncoder, RateSample, TemperatureSample
-    from gyrotherm.codecs import decode_rate, read_run
     from gyrotherm.compensation import load_calibration
     from gyrotherm.daemon import Pipeline
     from gyrotherm.estimators import TemperatureEstimator
 
-    run, cal = read_run(sys.argv[1]), load_calibration(sys.argv[2])
+    with open(sys.argv[1]) as f:
+        rows = json.load(f)  # [time_s, temperature_c, x, y, z] per row
+    cal = load_calibration(sys.argv[2])
 
     class Sink:
         def __init__(self):
             self.rates = []
         def put_rate(self, payload):
-            self.rates.append(payload)
+            self.rates.append(bytes(payload).hex())
         def put_state(self, payload):
             pass
 
     sink, enc = Sink(), FrameEncoder()
     pipe = Pipeline(FrameDecoder(), sink, calibration=cal)
-    for i, t in enumerate(run.time_s.tolist()):
-        pipe.process(enc.encode_temperature(TemperatureSample(t, float(run.temperature_c[i]))),
-                     1.0e9)
-        r = [float(run.rates_dps[a][i]) for a in "xyz"]
-        pipe.process(enc.encode_rate(RateSample(t, *r)), 1.0e9)
+    for t, temp, x, y, z in rows:
+        pipe.process(enc.encode_temperature(TemperatureSample(t, temp)), 1.0e9)
+        pipe.process(enc.encode_rate(RateSample(t, x, y, z)), 1.0e9)
     engine = TemperatureEstimator().engine
-    print(json.dumps({"modules": sorted(sys.modules), "engine": engine,
-                      "rates": [list(decode_rate(p).rate_dps) for p in sink.rates]}))
+    print(json.dumps({"modules": sorted(sys.modules), "engine": engine, "rates": sink.rates}))
 """)
 
 CONTROL_CHILD = textwrap.dedent("""
@@ -85,8 +95,8 @@ CONTROL_CHILD = textwrap.dedent("""
 """)
 
 
-def _matches(name: str) -> list[str]:
-    return [p for p in OFFLINE if name == p or name.startswith(p + ".")]
+def _matches(name: str, prefixes: tuple[str, ...] = OFFLINE) -> list[str]:
+    return [p for p in prefixes if name == p or name.startswith(p + ".")]
 
 
 def _child(code: str, *argv: str) -> dict[str, object]:
@@ -105,8 +115,11 @@ def files(short_runs: list[Run], stream_calibration: Calibration,
           tmp_path_factory: pytest.TempPathFactory) -> tuple[Run, Path, Path]:
     d = tmp_path_factory.mktemp("vehicle")
     run = short_runs[2].slice(0, 1500)  # 25 min of a 60-min heating run at 1 Hz
-    return (run, write_run(run, d / "run.csv", exact=True),
-            stream_calibration.save(d / "cal.json"))
+    rows = np.column_stack([run.time_s, run.temperature_c,
+                            *(run.rates_dps[a] for a in "xyz")]).tolist()
+    rows_path = d / "rows.json"
+    rows_path.write_text(json.dumps(rows), encoding="utf-8")  # repr floats: exact
+    return run, rows_path, stream_calibration.save(d / "cal.json")
 
 
 def test_the_vehicle_path_loads_no_offline_module_and_runs(
@@ -122,14 +135,15 @@ def test_the_vehicle_path_loads_no_offline_module_and_runs(
                    "gyrotherm.codecs._wire", "zenoh", "can", "cantools", "msgpack", "numpy"):
         assert needed in modules, needed
     assert out["engine"] == "python"
-    offline = {m: _matches(m) for m in modules}
+    offline = {m: _matches(m) + _matches(m, OFFLINE_PARTS) for m in modules}
     assert not {m: p for m, p in offline.items() if p}, "offline modules on the vehicle path"
     # ... and it computed the real thing: the daemon's corrected rates equal offline
     # compensation (the offline features come from the filter's float loop, checked
     # against filterpy in tests/estimators)
-    rates = out["rates"]
-    assert isinstance(rates, list) and len(rates) == len(run)
-    assert_offline_compensation([tuple(r) for r in rates], run, stream_calibration)
+    payloads = out["rates"]
+    assert isinstance(payloads, list) and len(payloads) == len(run)
+    rates = [decode_rate(bytes.fromhex(p)).rate_dps for p in payloads]
+    assert_offline_compensation(rates, run, stream_calibration)
 
 
 def test_control_the_filterpy_engine_does_load_filterpy_and_scipy() -> None:
@@ -139,3 +153,39 @@ def test_control_the_filterpy_engine_does_load_filterpy_and_scipy() -> None:
     loaded = {p for m in modules for p in _matches(m)}
     assert {"filterpy", "scipy"} <= loaded
     assert not loaded & {"gyrotherm.sim", "gyrotherm.analysis"}
+
+
+LAZY_PACKAGES = ("gyrotherm.codecs", "gyrotherm.compensation", "gyrotherm.estimators")
+
+
+def test_the_public_api_keeps_every_name() -> None:
+    """The packages whose offline names load lazily still export every name of their
+    ``__all__``, as the defining module's object, through attribute access, ``from ...
+    import`` and ``import *``, and list them in ``dir()``. In a fresh interpreter, so the
+    first access is the lazy one."""
+    code = textwrap.dedent("""
+        import importlib, json, sys
+        out = {}
+        for name in sys.argv[1:]:
+            pkg = importlib.import_module(name)
+            ns = {}
+            exec(f"from {name} import *", ns)
+            lazy = dict(pkg._LAZY)
+            out[name] = {
+                "all": sorted(pkg.__all__),
+                "star": sorted(k for k in ns if not k.startswith("__")),
+                "dir_missing": sorted(set(pkg.__all__) - set(dir(pkg))),
+                "lazy_same": all(getattr(pkg, n) is getattr(importlib.import_module(m), n)
+                                 for n, m in lazy.items()),
+                "lazy_in_all": sorted(set(lazy) - set(pkg.__all__)),
+            }
+        print(json.dumps(out))
+    """)
+    out = _child(code, *LAZY_PACKAGES)
+    for name in LAZY_PACKAGES:
+        got = out[name]
+        assert isinstance(got, dict)
+        assert got["star"] == got["all"] and len(got["all"]) > 3, name
+        assert got["dir_missing"] == [] and got["lazy_same"] and got["lazy_in_all"] == [], name
+    with pytest.raises(AttributeError, match="no attribute 'nope'"):
+        _ = gyrotherm.codecs.nope  # type: ignore[attr-defined]

@@ -7,11 +7,17 @@ import sys
 from collections.abc import Sequence
 
 from gyrotherm import __version__
-from gyrotherm.cli import _conventions, _demo, _diagnose, _export, _import, _offline, _run
+from gyrotherm.cli import _conventions, _run
 from gyrotherm.cli._guard import run_command
 
+_GLOBAL_FLAGS = ("-q", "--quiet", "--debug")
+"""Options of ``gyrotherm`` itself that may stand before the subcommand."""
 
-def build_parser() -> argparse.ArgumentParser:
+
+def build_parser(*, run_only: bool = False) -> argparse.ArgumentParser:
+    """The command line; ``run_only``: with the ``run`` subcommand alone (what ``gyrotherm
+    run`` parses, so the daemon's start-up imports none of the offline commands' modules:
+    issue 22, tests/daemon/test_vehicle_imports.py)."""
     parser = argparse.ArgumentParser(
         prog="gyrotherm",
         description="Thermal zero-bias compensation for MEMS gyroscopes (T and ΔT models).",
@@ -22,6 +28,11 @@ def build_parser() -> argparse.ArgumentParser:
                         help="let an unexpected error through with its traceback "
                         "(default: one line and the file holding the traceback)")
     sub = parser.add_subparsers(dest="command", required=True)
+    if run_only:
+        _run.register(sub)
+        return _conventions.apply(parser)
+    from gyrotherm.cli import _demo, _diagnose, _export, _import, _offline
+
     _offline.register(sub)
     _run.register(sub)
     _diagnose.register(sub)
@@ -47,9 +58,18 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         return record_main(args_list[quiet + 1:] + (["-q"] if quiet else []),
                            formatter_class=_conventions.DefaultsFormatter)
-    parser = build_parser()
-    args = parser.parse_args(args_list)
+    args = parse_args(args_list)
     return run_command(args.func, args, args_list)  # one line per failure (cli._guard)
 
 
-__all__ = ["build_parser", "main"]
+def parse_args(args_list: Sequence[str]) -> argparse.Namespace:
+    """Parse a command line as :func:`main` does: ``gyrotherm [-q] [--debug] run ...``
+    with the ``run`` parser alone, anything else with every subcommand's."""
+    i = 0
+    while i < len(args_list) and args_list[i] in _GLOBAL_FLAGS:
+        i += 1
+    run_only = list(args_list[i:i + 1]) == ["run"]
+    return build_parser(run_only=run_only).parse_args(args_list)
+
+
+__all__ = ["build_parser", "main", "parse_args"]

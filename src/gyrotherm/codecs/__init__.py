@@ -1,6 +1,11 @@
 """Codecs: run files (CSV version 1), CAN frames (DBC via cantools), candump logs,
 and the msgpack wire payloads published on Zenoh."""
 
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from gyrotherm.codecs._can import (
     DecodeResult,
     DecoderStats,
@@ -10,14 +15,6 @@ from gyrotherm.codecs._can import (
     RejectReason,
     TemperatureSample,
 )
-from gyrotherm.codecs._candump import (
-    format_candump_line,
-    iter_candump,
-    parse_candump_line,
-    read_candump,
-    write_candump,
-)
-from gyrotherm.codecs._candump_run import is_candump_log, run_from_candump
 from gyrotherm.codecs._canenc import FrameEncoder, RateLike, TemperatureLike
 from gyrotherm.codecs._canmap import DEFAULT_DBC_PATH, SignalMap
 from gyrotherm.codecs._crc import (
@@ -26,15 +23,6 @@ from gyrotherm.codecs._crc import (
     CRC_ALGORITHMS,
     Crc8,
     crc8_algorithm,
-)
-from gyrotherm.codecs._runfile import (
-    AXES,
-    RUN_FILE_VERSION,
-    Run,
-    format_run,
-    parse_run,
-    read_run,
-    write_run,
 )
 from gyrotherm.codecs._wire import (
     SCHEMA_VERSION,
@@ -49,13 +37,54 @@ from gyrotherm.codecs._wire import (
     encode_rate,
     encode_state,
 )
-from gyrotherm.codecs._wire_decode import (
-    decode_calibration_info,
-    decode_health,
-    decode_message,
-    decode_rate,
-    decode_state,
-)
+
+if TYPE_CHECKING:  # offline (run files, candump logs) and client side (decoding): lazy, see _LAZY
+    from gyrotherm.codecs._candump import (
+        format_candump_line,
+        iter_candump,
+        parse_candump_line,
+        read_candump,
+        write_candump,
+    )
+    from gyrotherm.codecs._candump_run import is_candump_log, run_from_candump
+    from gyrotherm.codecs._runfile import (
+        AXES,
+        RUN_FILE_VERSION,
+        Run,
+        format_run,
+        parse_run,
+        read_run,
+        write_run,
+    )
+    from gyrotherm.codecs._wire_decode import (
+        decode_calibration_info,
+        decode_health,
+        decode_message,
+        decode_rate,
+        decode_state,
+    )
+
+_LAZY = {
+    "format_candump_line": "gyrotherm.codecs._candump",
+    "iter_candump": "gyrotherm.codecs._candump",
+    "parse_candump_line": "gyrotherm.codecs._candump",
+    "read_candump": "gyrotherm.codecs._candump",
+    "write_candump": "gyrotherm.codecs._candump",
+    "is_candump_log": "gyrotherm.codecs._candump_run",
+    "run_from_candump": "gyrotherm.codecs._candump_run",
+    "AXES": "gyrotherm.codecs._runfile",
+    "RUN_FILE_VERSION": "gyrotherm.codecs._runfile",
+    "Run": "gyrotherm.codecs._runfile",
+    "format_run": "gyrotherm.codecs._runfile",
+    "parse_run": "gyrotherm.codecs._runfile",
+    "read_run": "gyrotherm.codecs._runfile",
+    "write_run": "gyrotherm.codecs._runfile",
+    "decode_calibration_info": "gyrotherm.codecs._wire_decode",
+    "decode_health": "gyrotherm.codecs._wire_decode",
+    "decode_message": "gyrotherm.codecs._wire_decode",
+    "decode_rate": "gyrotherm.codecs._wire_decode",
+    "decode_state": "gyrotherm.codecs._wire_decode",
+}
 
 __all__ = [
     "AXES",
@@ -106,3 +135,17 @@ __all__ = [
     "write_candump",
     "write_run",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """The offline names, imported on first use (PEP 562): the daemon never loads them."""
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_LAZY})
