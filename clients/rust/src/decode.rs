@@ -50,6 +50,38 @@ pub mod flags {
     /// The boot-time zero in use could not be verified as taken at rest (after a restart,
     /// a first calibration or a clock step): a slow steady turn may be in it.
     pub const ZERO_UNVERIFIED: u64 = 0x4000;
+
+    /// Every flag known to this version, with its name (as the Python `StatusFlags`).
+    pub const ALL: [(u64, &str); 15] = [
+        (TEMPERATURE_STALE, "TEMPERATURE_STALE"),
+        (T_CLAMPED, "T_CLAMPED"),
+        (DELTA_T_CLAMPED, "DELTA_T_CLAMPED"),
+        (NO_CALIBRATION, "NO_CALIBRATION"),
+        (ESTIMATOR_REJECTED, "ESTIMATOR_REJECTED"),
+        (COUNTER_JUMP, "COUNTER_JUMP"),
+        (ESTIMATOR_WARMUP, "ESTIMATOR_WARMUP"),
+        (RATE_SATURATED, "RATE_SATURATED"),
+        (SENSOR_FAULT, "SENSOR_FAULT"),
+        (NON_FINITE, "NON_FINITE"),
+        (BIAS_INVALID, "BIAS_INVALID"),
+        (T_ON_CLAMPED, "T_ON_CLAMPED"),
+        (ZERO_PENDING, "ZERO_PENDING"),
+        (ZERO_FAILED, "ZERO_FAILED"),
+        (ZERO_UNVERIFIED, "ZERO_UNVERIFIED"),
+    ];
+
+    /// The names of the bits set in `bits`, lowest first; a bit this version does
+    /// not know (added by a newer daemon) is named by its value, e.g. `"0x8000"`.
+    pub fn names(bits: u64) -> Vec<String> {
+        (0..64)
+            .map(|i| 1u64 << i)
+            .filter(|bit| bits & bit != 0)
+            .map(|bit| match ALL.iter().find(|(b, _)| *b == bit) {
+                Some((_, name)) => (*name).to_string(),
+                None => format!("{bit:#x}"),
+            })
+            .collect()
+    }
 }
 
 /// A payload that does not follow the wire format; the text names the message,
@@ -604,6 +636,15 @@ pub fn decode_calibration_info(payload: &[u8]) -> Result<CalibrationInfo, Decode
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn flag_names_lowest_first_unknown_bits_by_value() {
+        assert!(flags::names(0).is_empty());
+        assert_eq!(
+            flags::names(flags::NON_FINITE | flags::TEMPERATURE_STALE | 0x8000),
+            ["TEMPERATURE_STALE", "NON_FINITE", "0x8000"]
+        );
+    }
 
     fn pack(v: Value) -> Vec<u8> {
         let mut out = Vec::new();

@@ -25,4 +25,7 @@ pub use decode::{
     DecodeError, HealthMessage, RateMessage, StateMessage, ZeroState,
 };
 pub use stats::{LatencyStats, StreamStats};
-pub use subscriber::{keys, Error, Keys, Subscriber, SubscriberStats};
+pub use subscriber::{
+    keys, session_config, session_config_file, zenoh_error_text, Error, Keys, Subscriber,
+    SubscriberStats, PLACEHOLDER_PASSWORD,
+};

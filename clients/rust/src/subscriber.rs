@@ -7,9 +7,20 @@
 //! (bounded, oldest dropped first and counted) for [`Subscriber::recv_rate`]; the
 //! latest state and health are kept. Undecodable payloads are counted with their
 //! error, never raised into zenoh.
+//!
+//! The session comes from one of three places, as in the Python client:
+//! * [`Subscriber::connect`]: endpoints only, with the Python client's safe defaults
+//!   ([`session_config`]: a peer that listens nowhere, no scouting);
+//! * [`Subscriber::from_config_file`]: a Zenoh JSON5 configuration file, loaded
+//!   unchanged as by `gyrotherm listen --zenoh-config` and
+//!   `open_session(config_file=...)` ([`session_config_file`]): router login
+//!   (`transport/auth/usrpwd`, deploy/zenoh/client-of-router.json5) and mutual TLS
+//!   (deploy/zenoh/tls-mutual.json5) are set there;
+//! * [`Subscriber::with_config`]: a [`zenoh::Config`] built by the caller.
 
 use std::collections::VecDeque;
 use std::fmt;
+use std::path::Path;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -88,6 +99,112 @@ pub fn keys(vehicle: &str, sensor: &str) -> Result<Keys, Error> {
         health: format!("{p}/health"),
         calibration: format!("{p}/calibration"),
     })
+}
+
+/// The password shipped in deploy/zenoh/client-of-router.json5; a configuration file
+/// still holding it is refused (as by the Python client and the daemon).
+pub const PLACEHOLDER_PASSWORD: &str = "REPLACE-WITH-A-SECRET";
+
+/// A zenoh error's text without the Rust source locations zenoh appends
+/// (`… at /root/.cargo/…/config.rs:86.`), as the Python `zenoh_error_text`.
+pub fn zenoh_error_text(error: &dyn fmt::Display) -> String {
+    let text = error.to_string();
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text.as_str();
+    while let Some(i) = rest.find(" at ") {
+        let after = &rest[i + 4..];
+        let token_end = after.find(char::is_whitespace).unwrap_or(after.len());
+        let token = after[..token_end].trim_end_matches('.');
+        let is_location = token
+            .rsplit_once(".rs:")
+            .is_some_and(|(_, line)| {
+                !line.is_empty() && line.chars().all(|c| c.is_ascii_digit() || c == ':')
+            });
+        if is_location {
+            out.push_str(&rest[..i]);
+            rest = &after[token_end..];
+        } else {
+            out.push_str(&rest[..i + 4]);
+            rest = after;
+        }
+    }
+    out.push_str(rest);
+    let out = plain_json5_message(&out);
+    let out = out.trim().trim_end_matches('.').trim();
+    out.to_string()
+}
+
+/// `Message { msg: "unknown variant …", location: Some(Location { line: 1, column: 9 }) }`
+/// (json5's Debug form in zenoh's config errors) → `unknown variant … (line 1, column 9)`.
+fn plain_json5_message(text: &str) -> String {
+    const HEAD: &str = "Message { msg: \"";
+    let Some(start) = text.find(HEAD) else {
+        return text.to_string();
+    };
+    let body = &text[start + HEAD.len()..];
+    let (mut msg, mut escaped, mut end) = (String::new(), false, None);
+    for (i, c) in body.char_indices() {
+        match (escaped, c) {
+            (true, c) => {
+                msg.push(c);
+                escaped = false;
+            }
+            (false, '\\') => escaped = true,
+            (false, '"') => {
+                end = Some(i + 1);
+                break;
+            }
+            (false, c) => msg.push(c),
+        }
+    }
+    let Some(end) = end else {
+        return text.to_string();
+    };
+    let tail = &body[end..];
+    let number_after = |key: &str| -> Option<String> {
+        let at = tail.find(key)? + key.len();
+        let digits: String = tail[at..].chars().take_while(char::is_ascii_digit).collect();
+        (!digits.is_empty()).then_some(digits)
+    };
+    let (located, close) = if tail.starts_with(", location: Some(Location {") {
+        (
+            number_after("line: ")
+                .zip(number_after("column: "))
+                .map(|(l, c)| format!("{msg} (line {l}, column {c})")),
+            "}) }",
+        )
+    } else if tail.starts_with(", location: None }") {
+        (Some(msg), " }")
+    } else {
+        (None, "")
+    };
+    match (located, tail.find(close)) {
+        (Some(plain), Some(at)) => {
+            format!("{}{plain}{}", &text[..start], &tail[at + close.len()..])
+        }
+        _ => text.to_string(),
+    }
+}
+
+/// A Zenoh configuration file (JSON5) loaded unchanged, as the Python
+/// `session_config(config_file=...)`: zenoh checks its keys and values; a
+/// `transport/auth/usrpwd/password` still equal to [`PLACEHOLDER_PASSWORD`] is
+/// refused. Errors name the file.
+pub fn session_config_file(config_file: impl AsRef<Path>) -> Result<Config, Error> {
+    let path = config_file.as_ref();
+    let source = format!("zenoh config file {:?}", path.display().to_string());
+    let config = Config::from_file(path)
+        .map_err(|e| Error::Config(format!("{source}: {}", zenoh_error_text(&e))))?;
+    if let Ok(password) = config.get_json("transport/auth/usrpwd/password") {
+        if password == format!("{PLACEHOLDER_PASSWORD:?}") {
+            return Err(Error::Config(format!(
+                "{source}: transport/auth/usrpwd/password is still the shipped placeholder \
+                 {PLACEHOLDER_PASSWORD:?}: set the password the router's dictionary file has \
+                 for this user (docs/operations.md, \"Threat model\")"
+            )));
+        }
+    }
+    Ok(config)
 }
 
 /// The Python client's session defaults: a peer that listens nowhere, connects to
@@ -243,6 +360,16 @@ fn on_sample(shared: &Shared, keys: &Keys, sample: &Sample) {
     shared.1.notify_all();
 }
 
+fn check_args(vehicle: &str, sensor: &str, queue_size: usize) -> Result<(), Error> {
+    keys(vehicle, sensor)?;
+    if queue_size < 1 {
+        return Err(Error::Config(format!(
+            "queue_size = {queue_size} is invalid: must be >= 1"
+        )));
+    }
+    Ok(())
+}
+
 /// Subscribes to one gyro's rate stream; see the module docs.
 pub struct Subscriber {
     keys: Keys,
@@ -253,7 +380,7 @@ pub struct Subscriber {
 
 impl Subscriber {
     /// Open a peer session connected to `connect` (e.g. `["tcp/127.0.0.1:7447"]`) and
-    /// subscribe to `gyrotherm/<vehicle>/<sensor>/rate`. `queue_size` ≥ 1 bounds the
+    /// subscribe to `gyrotherm/<vehicle>/<sensor>/*`. `queue_size` ≥ 1 bounds the
     /// queue (the Python default is 1024). A connect endpoint that is not up yet is
     /// retried in the background by zenoh.
     pub fn connect(
@@ -262,16 +389,57 @@ impl Subscriber {
         connect: &[String],
         queue_size: usize,
     ) -> Result<Self, Error> {
-        let keys = keys(vehicle, sensor)?;
-        if queue_size < 1 {
-            return Err(Error::Config(format!(
-                "queue_size = {queue_size} is invalid: must be >= 1"
-            )));
-        }
+        check_args(vehicle, sensor, queue_size)?;
         let config = session_config(connect)?;
-        let session = zenoh::open(config)
-            .wait()
-            .map_err(|e| Error::Zenoh(format!("zenoh open (connect {connect:?}): {e}")))?;
+        Self::open(vehicle, sensor, config, queue_size, &format!("connect {connect:?}"))
+    }
+
+    /// Open a session from a Zenoh configuration file (JSON5, loaded unchanged by
+    /// [`session_config_file`]; its mode, endpoints, login and TLS files apply) and
+    /// subscribe as [`Subscriber::connect`]. The Rust twin of the Python
+    /// `Subscriber(vehicle, sensor, session=open_session(config_file=...))` and of
+    /// `gyrotherm listen --zenoh-config`. In client mode the open fails (with
+    /// [`Error::Zenoh`]) when no router accepts the session within the file's
+    /// `connect/timeout_ms`: router down, wrong password, certificate refused.
+    pub fn from_config_file(
+        vehicle: &str,
+        sensor: &str,
+        config_file: impl AsRef<Path>,
+        queue_size: usize,
+    ) -> Result<Self, Error> {
+        check_args(vehicle, sensor, queue_size)?;
+        let path = config_file.as_ref();
+        let config = session_config_file(path)?;
+        let source = format!("config file {:?}", path.display().to_string());
+        Self::open(vehicle, sensor, config, queue_size, &source)
+    }
+
+    /// Open a session from a [`zenoh::Config`] the caller built, and subscribe as
+    /// [`Subscriber::connect`].
+    pub fn with_config(
+        vehicle: &str,
+        sensor: &str,
+        config: Config,
+        queue_size: usize,
+    ) -> Result<Self, Error> {
+        check_args(vehicle, sensor, queue_size)?;
+        Self::open(vehicle, sensor, config, queue_size, "given config")
+    }
+
+    fn open(
+        vehicle: &str,
+        sensor: &str,
+        config: Config,
+        queue_size: usize,
+        source: &str,
+    ) -> Result<Self, Error> {
+        let keys = keys(vehicle, sensor)?;
+        let session = zenoh::open(config).wait().map_err(|e| {
+            Error::Zenoh(format!(
+                "cannot open zenoh session ({source}): {}",
+                zenoh_error_text(&e)
+            ))
+        })?;
         let shared: Shared = Arc::new((
             Mutex::new(Inner {
                 queue: VecDeque::with_capacity(queue_size.min(4096)),
@@ -293,7 +461,7 @@ impl Subscriber {
             .declare_subscriber(all.clone())
             .callback(move |sample| on_sample(&cb_shared, &cb_keys, &sample))
             .wait()
-            .map_err(|e| Error::Zenoh(format!("zenoh subscribe {all}: {e}")))?;
+            .map_err(|e| Error::Zenoh(format!("zenoh subscribe {all}: {}", zenoh_error_text(&e))))?;
         Ok(Self {
             keys,
             shared,
@@ -397,7 +565,7 @@ impl Subscriber {
             .get(key.as_str())
             .timeout(timeout)
             .wait()
-            .map_err(|e| Error::Zenoh(format!("zenoh get {key}: {e}")))?;
+            .map_err(|e| Error::Zenoh(format!("zenoh get {key}: {}", zenoh_error_text(&e))))?;
         let mut error = None;
         while let Ok(reply) = replies.recv() {
             match reply.result() {
@@ -448,6 +616,53 @@ mod tests {
             .unwrap_err()
             .to_string()
             .starts_with("sensor name"));
+    }
+
+    fn temp_file(name: &str, text: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("gyrotherm-client-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    }
+
+    #[test]
+    fn rust_locations_are_stripped_from_zenoh_errors() {
+        let e = "Unable to connect to any of [tcp/127.0.0.1:1]! at /root/.cargo/registry/src/x/zenoh-1.10.2/src/net/runtime/orchestrator.rs:1013.";
+        assert_eq!(zenoh_error_text(&e), "Unable to connect to any of [tcp/127.0.0.1:1]!");
+        let e = "bad value at line 3 at /a/b/config.rs:86:5. - Caused by x at /c/d.rs:2.";
+        assert_eq!(zenoh_error_text(&e), "bad value at line 3 - Caused by x");
+        assert_eq!(zenoh_error_text(&"look at me."), "look at me");
+        let e = r#"JSON error: Message { msg: "unknown variant `server`, expected \"x\"", location: Some(Location { line: 1, column: 9 }) } at /a/config.rs:86."#;
+        assert_eq!(
+            zenoh_error_text(&e),
+            r#"JSON error: unknown variant `server`, expected "x" (line 1, column 9)"#
+        );
+        let e = r#"JSON error: Message { msg: "eof", location: None }"#;
+        assert_eq!(zenoh_error_text(&e), "JSON error: eof");
+    }
+
+    #[test]
+    fn config_file_loaded_unchanged_placeholder_refused() {
+        let text = r#"{ mode: "client", connect: { endpoints: ["tcp/127.0.0.1:7447"] },
+            transport: { auth: { usrpwd: { user: "u", password: "REPLACE-WITH-A-SECRET" } } } }"#;
+        let path = temp_file("placeholder.json5", text);
+        let e = session_config_file(&path).unwrap_err().to_string();
+        assert!(e.contains("placeholder.json5") && e.contains("still the shipped placeholder"), "{e}");
+        let path = temp_file("real.json5", &text.replace(PLACEHOLDER_PASSWORD, "s3cret"));
+        let config = session_config_file(&path).unwrap();
+        assert_eq!(config.get_json("mode").unwrap(), "\"client\"");
+        assert_eq!(config.get_json("transport/auth/usrpwd/user").unwrap(), "\"u\"");
+        // zenoh's own schema check, the file named, no Rust source location
+        let path = temp_file("bad.json5", r#"{ mode: "server" }"#);
+        let e = session_config_file(&path).unwrap_err().to_string();
+        assert!(e.starts_with("zenoh config file ") && e.contains("bad.json5"), "{e}");
+        assert!(e.contains("unknown variant `server`") && e.ends_with("(line 1, column 9)"), "{e}");
+        assert!(!e.contains(".rs:") && !e.contains("Message {"), "{e}");
+        let e = session_config_file("/nonexistent/z.json5").unwrap_err().to_string();
+        assert!(e.contains("/nonexistent/z.json5"), "{e}");
+        let e = Subscriber::from_config_file("a/b", "imu0", &path, 8).err().unwrap().to_string();
+        assert!(e.starts_with("vehicle name"), "{e}");
     }
 
     #[test]

@@ -416,3 +416,23 @@ fn every_truncation_and_wrong_version_is_an_error() {
         );
     }
 }
+
+#[test]
+fn flag_names_and_bits_match_the_vectors_file() {
+    // the vectors file lists the Python StatusFlags: same names, same bits, no more
+    let doc = load();
+    let want: BTreeMap<String, u64> = doc["flags"]
+        .as_object()
+        .expect("flags")
+        .iter()
+        .map(|(k, v)| (k.clone(), v.as_u64().expect("flag bit")))
+        .collect();
+    let got: BTreeMap<String, u64> = gyrotherm_client::decode::flags::ALL
+        .iter()
+        .map(|(bit, name)| ((*name).to_string(), *bit))
+        .collect();
+    assert_eq!(got, want);
+    for (name, bit) in &want {
+        assert_eq!(gyrotherm_client::decode::flags::names(*bit), vec![name.clone()]);
+    }
+}
