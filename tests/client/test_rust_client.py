@@ -100,6 +100,38 @@ def _reader(stream: Any, lines: queue.Queue[str | None]) -> None:
     lines.put(None)
 
 
+def _no_constant(name: str) -> Any:
+    raise AssertionError(f"not JSON (RFC 8259): {name}")
+
+
+def strict_json(line: str) -> dict[str, Any]:
+    """One line of the example's output, parsed as RFC 8259 JSON: Python's ``json``
+    would take ``NaN`` and ``Infinity``; here they fail."""
+    value = json.loads(line, parse_constant=_no_constant)
+    assert isinstance(value, dict), line
+    return value
+
+
+def flag_names(flags: int) -> list[str]:
+    """StatusFlags names of ``flags``, lowest bit first; unknown bits as hex."""
+    known = {int(f): str(f.name) for f in StatusFlags if f}
+    return [known.get(1 << i, hex(1 << i)) for i in range(64) if flags >> i & 1]
+
+
+def check_events(got: list[dict[str, Any]], rates: list[RateMessage], gain: float) -> None:
+    """Rust's events against the Python Subscriber's messages: a command only from a
+    clean sample (flags 0), every flagged one skipped with its flag names."""
+    assert [g["seq"] for g in got] == [m.seq for m in rates]
+    for g, m in zip(got, rates, strict=True):
+        assert g["flags"] == int(m.flags)
+        if m.flags:
+            assert g["event"] == "skipped" and "command_dps" not in g, g
+            assert g["flag_names"] == flag_names(int(m.flags))
+        else:
+            assert g["event"] == "sample"
+            assert g["command_dps"] == -gain * m.rate_dps[2]
+
+
 def _next_json(lines: queue.Queue[str | None], proc: subprocess.Popen[str]) -> dict[str, Any]:
     while True:
         try:
@@ -110,7 +142,7 @@ def _next_json(lines: queue.Queue[str | None], proc: subprocess.Popen[str]) -> d
             err = proc.stderr.read() if proc.stderr else ""
             pytest.fail(f"the Rust example ended early (exit {proc.wait()}): {err[-2000:]}")
         if line.startswith("{"):
-            return dict(json.loads(line))
+            return strict_json(line)
 
 
 def test_readme_rust_servo_loop_against_the_daemon(
@@ -155,8 +187,7 @@ def test_readme_rust_servo_loop_against_the_daemon(
                 proc.wait()
     assert ready == {"event": "ready", "calibration_id": calibration_id}
     assert calibration_id  # the daemon fixture loads one
-    assert [g["event"] for g in got] == ["sample"] * n
-    assert [g["seq"] for g in got] == [m.seq for m in rates]
+    check_events(got, rates, gain=2.0)
     assert [g["seq"] for g in got] == list(range(got[0]["seq"], got[0]["seq"] + n))
     for g, m in zip(got, rates, strict=True):
         # both decode the same float 64; Rust prints its shortest round-trip form
@@ -164,11 +195,12 @@ def test_readme_rust_servo_loop_against_the_daemon(
         assert g["raw_rate_dps"] == list(m.raw_rate_dps)
         assert g["bias_dps"] == list(m.bias_dps)
         assert (g["sensor_time_s"], g["receive_time_s"]) == (m.sensor_time_s, m.receive_time_s)
-        assert g["flags"] == int(m.flags)
-        assert g["command_dps"] == -2.0 * m.rate_dps[2]
     assert any(g["rate_dps"] != g["raw_rate_dps"] for g in got)  # compensated: bias removed
+    clean = sum(not m.flags for m in rates)
+    assert clean > 0, "the daemon flagged every sample: no command was checked"
     stats = done["rate"]
     assert done["event"] == "done" and done["samples"] == n
+    assert (done["commands"], done["skipped"]) == (clean, n - clean)
     counts = (stats["received"], stats["gaps"], stats["missing"], stats["undecodable"])
     assert counts == (n, 0, 0, 0)
     assert (py_stats.received, py_stats.gaps, py_stats.undecodable) == (n, 0, 0)
@@ -190,15 +222,21 @@ def test_rust_and_python_account_gaps_alike(built: None) -> None:
     # 0 1 2 [3 4] 5 5(dup) 6 <garbage> 3(restart: 0..2 missing) 4 [5..9] 10 11(NaN)
     seqs = [0, 1, 2, 5, 5, 6, None, 3, 4, 10, 11]
     nan = float("nan")
+    # flagged samples (no command from them): stale T at 1, invalid bias with clamped T
+    # at 6, a bit this version does not know (a newer daemon's) at 10
+    sent_flags = {1: StatusFlags.TEMPERATURE_STALE,
+                  6: StatusFlags.BIAS_INVALID | StatusFlags.T_CLAMPED, 10: StatusFlags(0x8000)}
     payloads = [b"\x93garbage" if q is None else encode_rate(RateMessage(
         q, 0.01 * q, 1.7e9 + q, (nan if q == 11 else 0.5 * q, -0.25, 1.0 + q),
-        (0.5 * q, 0.0, 1.0), (0.0, 0.25, -float(q)))) for q in seqs]  # fmt: skip
+        (0.5 * q, 0.0, 1.0), (0.0, 0.25, -float(q)),
+        sent_flags.get(q, StatusFlags.NONE))) for q in seqs]  # fmt: skip
     n = sum(q is not None for q in seqs)
     cargo = _cargo()
     argv = [cargo, "run", "--offline", "--example", "servo_loop", "--", "--vehicle", "gapcar",
             "--sensor", "imu0", "--connect", endpoint, "--max-samples", str(n), "--json",
             "--timeout-s", str(TIMEOUT_S)]  # fmt: skip
-    with Subscriber("gapcar", "imu0", session=session) as sub:
+    rates: list[RateMessage] = []
+    with Subscriber("gapcar", "imu0", session=session, on_rate=rates.append) as sub:
         proc = subprocess.Popen(argv, cwd=CRATE, text=True, stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE)  # fmt: skip
         try:
@@ -215,7 +253,7 @@ def test_rust_and_python_account_gaps_alike(built: None) -> None:
                 except queue.Empty:
                     continue
                 assert line is not None, proc.stderr.read() if proc.stderr else ""
-                ready = json.loads(line)
+                ready = strict_json(line)
                 break
             assert ready == {"event": "ready", "calibration_id": "cal-gaps"}
             for payload in payloads:
@@ -233,9 +271,14 @@ def test_rust_and_python_account_gaps_alike(built: None) -> None:
             queryable.undeclare()
         session.close()
     assert [g["seq"] for g in got] == [q for q in seqs if q is not None]
+    check_events(got, rates, gain=2.0)
     assert got[-1]["rate_dps"] == [None, -0.25, 12.0]  # NaN printed as null
     assert got[-1]["flags"] == int(StatusFlags.NON_FINITE)
-    assert all(g["flags"] == 0 for g in got[:-1])
+    assert got[-1]["event"] == "skipped" and got[-1]["flag_names"] == ["NON_FINITE"]
+    assert [g["seq"] for g in got if g["event"] == "skipped"] == [1, 6, 10, 11]
+    assert done["skipped_by_flag"] == {"TEMPERATURE_STALE": 1, "T_CLAMPED": 1,
+                                       "BIAS_INVALID": 1, "0x8000": 1, "NON_FINITE": 1}
+    assert (done["samples"], done["commands"], done["skipped"]) == (n, n - 4, 4)
     rust = done["rate"]
     expected = {"received": n, "gaps": 3, "missing": 2 + 3 + 5, "resets": 1, "duplicates": 1,
                 "undecodable": 1, "non_finite": 1}  # fmt: skip
