@@ -36,6 +36,8 @@ S_PER_US = 1e-6
 S_PER_NS = 1e-9
 ACCEL_KEYS = {"x": "accel_x_mps2", "y": "accel_y_mps2", "z": "accel_z_mps2"}
 """``Run.extra`` keys of the accelerometer axes (m/s²)."""
+ARMED_KEY = "armed"
+"""``Run.extra`` key of the vehicle's arming state at each row: 1 armed, 0 disarmed."""
 
 
 def sha256_of(path: str | os.PathLike[str]) -> str:
@@ -66,6 +68,15 @@ def hold_previous(t_src: FloatArray, v_src: FloatArray, t_dst: FloatArray) -> Fl
     out = np.full(len(t_dst), np.nan)
     ok = idx >= 0
     out[ok] = v_src[idx[ok]]
+    return out
+
+
+def state_at(t_src: FloatArray, v_src: FloatArray, t_dst: FloatArray, before: float
+             ) -> FloatArray:
+    """A logged state (``v_src`` from ``t_src`` on, sorted) at each ``t_dst``: the latest
+    at or before it; ``before`` for rows ahead of the first."""
+    out = hold_previous(t_src, v_src, t_dst)
+    out[np.isnan(out)] = before
     return out
 
 
@@ -101,6 +112,7 @@ def make_run(
     rates: Mapping[str, FloatArray],
     rate_to_dps: float,
     accel_mps2: Mapping[str, FloatArray] | None = None,
+    armed: FloatArray | None = None,
     metadata: Mapping[str, str],
     sha256: str,
 ) -> Run:
@@ -109,7 +121,8 @@ def make_run(
 
     ``where`` names the message or topic in errors. Accelerometer values may be NaN
     (no sample near): the accelerometer is kept only when every remaining row has
-    one, else left out with the count in metadata ``accel_rows_missing``.
+    one, else left out with the count in metadata ``accel_rows_missing``. ``armed``
+    (1/0 per row, from the log's arming state) goes to ``Run.extra["armed"]``.
     """
     t = np.asarray(time_s, dtype=np.float64)
     temp = np.asarray(temperature_c, dtype=np.float64)
@@ -135,6 +148,8 @@ def make_run(
         extra[ACCEL_KEYS[a]] = acc
     if accel_missing:  # keep the accelerometer only when every row has it
         extra = {}
+    if armed is not None:
+        extra[ARMED_KEY] = np.asarray(armed, dtype=np.float64)[sel]
     meta = {
         **metadata,
         **({"accel_rows_missing": str(accel_missing)} if accel_missing else {}),

@@ -9,7 +9,11 @@ One run per IMU instance, from the ``IMU`` message (ArduPilot
 * ``I`` → instance (metadata ``device_id`` ``IMU[<I>]``);
 * ``GyrX/Y/Z`` (rad/s) → ``rates_dps`` (× 180/π);
 * ``T`` (°C) → ``temperature_c``;
-* ``AccX/Y/Z`` (m/s²) → ``Run.extra`` ``accel_<axis>_mps2``.
+* ``AccX/Y/Z`` (m/s²) → ``Run.extra`` ``accel_<axis>_mps2``;
+* the arming state → ``Run.extra["armed"]`` (1/0 per row; metadata ``armed`` names the
+  source or ``none``): from ``ARM`` messages (``ArmState``, 1 armed) or, without them,
+  ``EV`` events (``Id`` 10 ARMED, 11 DISARMED, ArduPilot's ``LogEvent``), each held until
+  the next; rows before the first take the state it left (a transition).
 
 Logs from before the ``I`` column (ArduPilot ≤ 3.x) log instances as separate
 messages ``IMU``, ``IMU2``, ``IMU3`` with the temperature in ``Temp`` (and
@@ -43,11 +47,16 @@ from gyrotherm.readers._common import (
     each_instance,
     make_run,
     sha256_of,
+    sort_unique,
+    state_at,
 )
 
 MESSAGES = ("IMU", "IMU2", "IMU3")
 _GYRO = ("GyrX", "GyrY", "GyrZ")
 _ACCEL = ("AccX", "AccY", "AccZ")
+EV_ARMED, EV_DISARMED = 10, 11
+"""ArduPilot ``LogEvent`` ids of the ``EV`` message (AP_Logger)."""
+Arming = tuple[FloatArray, FloatArray, str]
 
 
 def _open(path: Path) -> Any:
@@ -85,11 +94,18 @@ def _decode(path: Path, log: Any, name: str, listed: NDArray[np.int64]
     """Every ``name`` message's columns (multipliers applied), from pymavlink's index
     of the log (``listed``: the messages' offsets; ``formats``), and how many were cut
     by the end of the file (left out)."""
-    mtype = log.name_to_id[name]
-    fmt = log.formats[mtype]
-    columns: list[str] = list(fmt.columns)
+    columns: list[str] = list(log.formats[log.name_to_id[name]].columns)
     time_col, temp_col = _layout(path, name, columns)
     wanted = [time_col, temp_col, *_GYRO, *_ACCEL] + (["I"] if "I" in columns else [])
+    return _gather(path, log, name, listed, wanted)
+
+
+def _gather(path: Path, log: Any, name: str, listed: NDArray[np.int64], wanted: list[str]
+            ) -> tuple[dict[str, FloatArray], int]:
+    """Columns ``wanted`` of the ``name`` messages at offsets ``listed``, and how many
+    were cut by the end of the file."""
+    fmt = log.formats[log.name_to_id[name]]
+    columns: list[str] = list(fmt.columns)
     offs = listed[listed + int(fmt.len) <= int(log.data_len)]
     dtype = _dtype(path, name, fmt.msg_struct)
     if dtype.itemsize != int(fmt.len) - 3:
@@ -117,17 +133,44 @@ def read_dataflash(path: str | os.PathLike[str]) -> list[Run]:
     p = Path(path)
     log = _open(p)
     try:
+        armed = arming_state(p, log)
         parts, cut = _parts(p, log)
     finally:
         log.close()  # the mmap and the file handle
     sha = sha256_of(p)
     return each_instance(p, [(f"message {name!r} instance {inst}",
-                              partial(_run, p, inst, name, cols, cut=cut, sha=sha))
+                              partial(_run, p, inst, name, cols, cut=cut, sha=sha, armed=armed))
                              for inst, name, cols in sorted(parts, key=lambda x: x[0])])
 
 
+def arming_state(p: Path, log: Any) -> Arming | None:
+    """(time s, 1 armed / 0 not, source) from the ``ARM`` messages, else the ``EV``
+    events ARMED/DISARMED; None when the log has neither (or no time column in them)."""
+    for name, field in (("ARM", "ArmState"), ("EV", "Id")):
+        mtype = log.name_to_id.get(name)
+        if mtype is None or not len(log.offsets[mtype]):
+            continue
+        columns = list(log.formats[mtype].columns)
+        time_col = next((c for c in ("TimeUS", "TimeMS") if c in columns), None)
+        if time_col is None or field not in columns:
+            continue
+        cols, _ = _gather(p, log, name, np.asarray(log.offsets[mtype], dtype=np.int64),
+                          [time_col, field])
+        t = cols[time_col] * (1e-3 if time_col == "TimeMS" else S_PER_US)
+        v = cols[field]
+        if name == "EV":
+            keep = (v == EV_ARMED) | (v == EV_DISARMED)
+            t, v = t[keep], (v[keep] == EV_ARMED).astype(np.float64)
+        else:
+            v = (v == 1).astype(np.float64)
+        rows, _, _ = sort_unique(t)
+        if len(rows):
+            return t[rows], v[rows], f"{name}.{field}"
+    return None
+
+
 def _run(p: Path, inst: int, name: str, cols: dict[str, FloatArray], *, cut: int,
-         sha: str) -> Run:
+         sha: str, armed: Arming | None) -> Run:
     time_col = "TimeUS" if "TimeUS" in cols else "TimeMS"
     temp = cols["T"] if "T" in cols else cols["Temp"]
     scale = 1e-3 if time_col == "TimeMS" else S_PER_US
@@ -141,14 +184,17 @@ def _run(p: Path, inst: int, name: str, cols: dict[str, FloatArray], *, cut: int
         "unit_rate": "rad/s",
         "unit_accel": "m/s2",
         "messages_cut_at_end": str(cut),
+        "armed": armed[2] if armed is not None else "none",
     }
+    t = cols[time_col] * scale
     return make_run(
         path=p, device=f"IMU[{inst}]", where=f"message {name!r} instance {inst}",
-        time_s=cols[time_col] * scale, temperature_c=temp,
+        time_s=t, temperature_c=temp,
         rates={ax: cols[c] for ax, c in zip("xyz", _GYRO, strict=True)},
         rate_to_dps=DEG_PER_RAD,
         accel_mps2={ax: cols[c] for ax, c in zip("xyz", _ACCEL, strict=True)},
-        metadata=meta, sha256=sha)
+        metadata=meta, sha256=sha,
+        armed=None if armed is None else state_at(armed[0], armed[1], t, 1.0 - armed[1][0]))
 
 
 def _parts(p: Path, log: Any) -> tuple[list[tuple[int, str, dict[str, FloatArray]]], int]:

@@ -14,6 +14,10 @@ order. Fields used (PX4 ``msg/SensorGyro.msg``):
 ``sensor_accel`` with the same instance, when logged, is interpolated onto the
 gyro's time stamps (linear, no extrapolation) into ``Run.extra``
 ``accel_<axis>_mps2`` (m/s²); metadata ``accel`` says ``sensor_accel <i>`` or
+``none``. The arming state, from ``vehicle_status.arming_state`` (armed = 2,
+``ARMING_STATE_ARMED`` in PX4's ``msg/VehicleStatus.msg``, every version), else
+``actuator_armed.armed``, is held onto the gyro's rows into ``Run.extra["armed"]`` (1/0;
+rows before the first message take its value); metadata ``armed`` names the source or
 ``none``. Logs pyulog flags as corrupt, or that end inside a message (a log cut
 short: metadata ``bytes_cut_at_end``), are still read up to the damage (metadata
 ``file_corruption: true``). An instance that cannot be read (NaN temperature
@@ -43,10 +47,15 @@ from gyrotherm.readers._common import (
     make_run,
     sha256_of,
     sort_unique,
+    state_at,
 )
 
 GYRO_TOPIC = "sensor_gyro"
 ACCEL_TOPIC = "sensor_accel"
+STATUS_TOPIC = "vehicle_status"
+ARMED_TOPIC = "actuator_armed"
+ARMING_STATE_ARMED = 2
+"""``vehicle_status.arming_state`` of an armed vehicle (PX4 ``msg/VehicleStatus.msg``)."""
 _BUS_TYPES = {0: "unknown", 1: "I2C", 2: "SPI", 3: "UAVCAN", 4: "simulation",
               5: "serial", 6: "MAVLink"}
 
@@ -71,7 +80,7 @@ def _load(path: Path) -> tuple[Any, str]:
     said = io.StringIO()  # pyulog prints what it finds wrong on stdout: kept, not shown
     try:
         with contextlib.redirect_stdout(said):
-            ulog = ULog(str(path), [GYRO_TOPIC, ACCEL_TOPIC])
+            ulog = ULog(str(path), [GYRO_TOPIC, ACCEL_TOPIC, STATUS_TOPIC, ARMED_TOPIC])
     except Exception as exc:  # pyulog raises ULogException, struct.error, IndexError ...
         raise RunFileError(f"{path}: not a readable PX4 ULog file: {exc}"
                            f"{_pyulog_said(said.getvalue())}") from exc
@@ -96,19 +105,36 @@ def read_ulog(path: str | os.PathLike[str]) -> list[Run]:
             f"{p}: a damaged or cut ULog ({p.stat().st_size} bytes{said}"
             f"): no {GYRO_TOPIC!r} data before the damage; give the complete file")
     if not gyros:
-        logged = sorted({d.name for d in ulog.data_list})
+        imu = [d for d in ulog.data_list if d.name in (GYRO_TOPIC, ACCEL_TOPIC)]
+        logged = sorted({d.name for d in imu})
         raise RunFileError(
-            f"{p}: no {GYRO_TOPIC!r} topic logged (this log has {len(ulog.data_list)} "
+            f"{p}: no {GYRO_TOPIC!r} topic logged (this log has {len(imu)} "
             f"topics among {GYRO_TOPIC!r}/{ACCEL_TOPIC!r}: {logged}); enable it in the "
             "PX4 logger (SDLOG_PROFILE 'thermal calibration' or 'sensor comparison')")
     accels = {d.multi_id: d for d in ulog.data_list if d.name == ACCEL_TOPIC}
     sha = sha256_of(p)
     corrupt = bool(getattr(ulog, "file_corruption", False))
     cut_bytes = bytes_cut_at_end(p)
+    armed = arming_state(ulog)
     return each_instance(p, [(f"topic {GYRO_TOPIC!r} instance {g.multi_id}",
                               partial(_run, p, g, accels.get(g.multi_id), sha, corrupt,
-                                      cut_bytes))
+                                      cut_bytes, armed))
                              for g in gyros])
+
+
+def arming_state(ulog: Any) -> tuple[FloatArray, FloatArray, str] | None:
+    """(time s, 1 armed / 0 not, source) from ``vehicle_status.arming_state``, else
+    ``actuator_armed.armed``; None when the log has neither."""
+    for topic, field, armed in ((STATUS_TOPIC, "arming_state", ARMING_STATE_ARMED),
+                                (ARMED_TOPIC, "armed", 1)):
+        d = next((d for d in ulog.data_list if d.name == topic and field in d.data), None)
+        if d is None or len(d.data[field]) == 0:
+            continue
+        t = np.asarray(d.data["timestamp"], dtype=np.float64) * S_PER_US
+        rows, _, _ = sort_unique(t)
+        state = (np.asarray(d.data[field])[rows] == armed).astype(np.float64)
+        return t[rows], state, f"{topic}.{field}"
+    return None
 
 
 def bytes_cut_at_end(path: Path) -> int:
@@ -134,8 +160,8 @@ def _time_s(data: dict[str, Any]) -> tuple[FloatArray, str]:
     return np.asarray(data[key], dtype=np.float64) * S_PER_US, key
 
 
-def _run(path: Path, gyro: Any, accel: Any, sha: str, corrupt: bool, cut_bytes: int
-         ) -> Run:
+def _run(path: Path, gyro: Any, accel: Any, sha: str, corrupt: bool, cut_bytes: int,
+         armed: tuple[FloatArray, FloatArray, str] | None) -> Run:
     where = f"topic {GYRO_TOPIC!r} instance {gyro.multi_id}"
     data: dict[str, Any] = gyro.data
     need = ("x", "y", "z", "temperature", "device_id")
@@ -166,6 +192,7 @@ def _run(path: Path, gyro: Any, accel: Any, sha: str, corrupt: bool, cut_bytes: 
         "unit_rate": "rad/s",
         "unit_accel": "m/s2",
         "accel": accel_label,
+        "armed": armed[2] if armed is not None else "none",
         "file_corruption": "true" if corrupt or cut_bytes else "false",
         "bytes_cut_at_end": str(cut_bytes),
     }
@@ -175,4 +202,5 @@ def _run(path: Path, gyro: Any, accel: Any, sha: str, corrupt: bool, cut_bytes: 
         path=path, device=f"{GYRO_TOPIC}{gyro.multi_id}", where=where, time_s=t,
         temperature_c=np.asarray(data["temperature"], dtype=np.float64),
         rates={a: np.asarray(data[a], dtype=np.float64) for a in "xyz"},
-        rate_to_dps=DEG_PER_RAD, accel_mps2=accel_mps2, metadata=meta, sha256=sha)
+        rate_to_dps=DEG_PER_RAD, accel_mps2=accel_mps2, metadata=meta, sha256=sha,
+        armed=None if armed is None else state_at(armed[0], armed[1], t, armed[1][0]))
