@@ -1,13 +1,15 @@
 """Footprint of ``gyrotherm run``: import time, time to READY=1, steady RSS at 2 kHz; before/after.
 
 Two source trees, run with the same interpreter and venv (``PYTHONPATH=<tree>/src``):
-BEFORE = ``--before-ref`` (default c8433e0, checked out into a temporary ``git
-worktree`` that is removed at the end; or an existing checkout, ``--before-src``),
-AFTER = this working tree. Measured, interleaved (before, after, before, ...):
+BEFORE = ``--before-ref`` (default 7f136f8, the last commit whose daemon estimator ran on
+filterpy; checked out into a temporary ``git worktree`` that is removed at the end; or an
+existing checkout, ``--before-src``), AFTER = this working tree. Measured, interleaved
+(before, after, bare, before, ...):
 
 1. **import**: ``--import-trials`` fresh interpreters each import what ``gyrotherm
-   run`` imports before the daemon starts: ``gyrotherm.cli.build_parser()``, parse
-   ``run --config X`` (AFTER: the command's module, the daemon). Per interpreter:
+   run`` imports before the daemon starts: ``gyrotherm.cli``, parse ``run --config X``
+   as ``main`` does (``cli.parse_args`` where the tree has it, else
+   ``build_parser()``), the command's module, ``gyrotherm.daemon``. Per interpreter:
    seconds spent importing (``perf_counter`` around it), VmRSS afterwards, module
    count, which offline modules got loaded; and the parent's spawn → exit wall time.
    Reference rows in the same rounds: ``numpy`` alone; ``deps`` = numpy + zenoh +
@@ -24,13 +26,35 @@ AFTER = this working tree. Measured, interleaved (before, after, before, ...):
    (``net.unix.max_dgram_qlen`` datagrams, 10 here) fills and each later
    notification blocks the daemon's loop for the notifier's send timeout. The bus is a
    ``SocketcandServer`` (from this tree's simulator) on 127.0.0.1; the daemon
-   connects with its ``socketcand`` interface. VmRSS at READY.
+   connects with its ``socketcand`` interface. VmRSS at READY. The same-run baseline,
+   interleaved with them: ``bare`` = a fresh interpreter that imports numpy + zenoh +
+   python-can + msgpack + cantools and then sends ``READY=1`` the same way (spawn →
+   READY of the bare import), and ``bare_session`` = the same plus opening a zenoh
+   session listening on loopback (what any zenoh publisher pays before it is ready).
 3. **steady**: right after READY, ``--steady-s`` s of a synthetic 3-axis gyro at
    ``--rate-hz`` rate frames/s (sensor time = schedule; temperature frames every
    0.1 s) played onto the server, a raw zenoh subscriber here counting the rate
    samples; VmRSS sampled every 0.5 s. Steady RSS = median of the samples in the
    last 5 s; also the last sample and VmHWM. Then SIGTERM; the daemon's closing
    line ``frames in N, published M, dropped D`` must account for every frame sent.
+
+4. **cpu** (per-frame CPU): the daemon's per-frame core, ``Pipeline.process`` (decode →
+   estimate → compensate → encode → a sink that discards), in a child per tree and
+   trial, interleaved, over the same pre-built frames of a 1 kHz gyro (seeded; as
+   bench/effects_cost.py), the fitted paper calibration: ``daemon`` = 10 Hz temperature
+   frames (1 % of the frames, the daemon's stream), ``temperature`` = a temperature
+   frame with every rate frame (isolates the estimator, which runs per temperature
+   frame). CPU time of the child (``process_time``) around the loop, best of
+   ``--cpu-passes`` passes per child; medians over ``--cpu-trials`` rounds.
+
+Bytecode. gyrotherm is installed from a wheel on a vehicle (docs/operations.md): pip
+writes every module's ``.pyc`` at install, and the unit's ``PYTHONDONTWRITEBYTECODE=1``
+only stops it writing more. A source tree under the same variable (this machine sets it)
+compiles every gyrotherm module from source at every start, ≈ 0.1 s that no vehicle
+pays, while the dependencies' ``.pyc`` from their wheels are there. So by default
+(``--bytecode compiled``) both trees are byte-compiled first (``compileall``, into their
+``__pycache__`` directories, which git ignores; the ones this run created are removed at
+the end); ``--bytecode source`` measures the trees as they are.
 
 Prints one JSON object on stdout (medians, ratios after/before, every sample), a
 human summary on stderr. Nothing asserts: a measurement. ``--quick``: fewer and
@@ -40,6 +64,7 @@ shorter trials. Loopback only; zenoh sessions without scouting.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import re
@@ -73,9 +98,12 @@ OFFLINE = ("gyrotherm.sim", "gyrotherm.analysis", "gyrotherm.client", "matplotli
            "scipy.signal", "scipy.stats", "scipy", "filterpy")  # fmt: skip
 
 RUN_PATH = """
-from gyrotherm.cli import build_parser
-args = build_parser().parse_args(["run", "--config", "x.toml"])
+import gyrotherm.cli as cli
+argv = ["run", "--config", "x.toml"]
+# as main() parses it: cli.parse_args (the run parser alone) where the tree has it
+args = cli.parse_args(argv) if hasattr(cli, "parse_args") else cli.build_parser().parse_args(argv)
 __import__(args.func.__module__)
+import gyrotherm.daemon
 """
 REFERENCE = {
     "numpy": "import numpy",
@@ -102,6 +130,26 @@ print(json.dumps({{"import_s": dt, "rss_kB": rss, "modules": len(sys.modules),
 """
 
 JSONDict = dict[str, Any]
+
+#: The same-run READY baselines (see the module docstring): import, (session), notify.
+BARE_READY = {
+    "bare": "",
+    "bare_session": """
+import zenoh
+_config = zenoh.Config()
+_config.insert_json5("scouting/multicast/enabled", "false")
+_config.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
+_session = zenoh.open(_config)
+""",
+}
+BARE_CHILD = """
+import os, signal, socket
+import numpy, zenoh, can, msgpack, cantools
+{extra}
+with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as _s:
+    _s.sendto(b"READY=1", os.environ["NOTIFY_SOCKET"])
+signal.pause()
+"""
 
 
 def median(values: list[float]) -> float | None:
@@ -340,14 +388,40 @@ def daemon_trial(src: Path, calibration: Path, frames: list[Any], work: Path,
     return out
 
 
+def bare_trial(name: str, work: Path) -> JSONDict:
+    """Spawn → READY=1 of a bare import of the daemon's dependencies (module docstring)."""
+    out: JSONDict = {}
+    with notify_socket(work) as (sock, path):
+        t0 = time.monotonic()
+        proc = subprocess.Popen([sys.executable, "-c", BARE_CHILD.format(extra=BARE_READY[name])],
+                                env=_env(None, NOTIFY_SOCKET=path), cwd=work,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)  # fmt: skip
+        try:
+            sock.settimeout(READY_TIMEOUT_S)
+            while "READY=1" not in sock.recv(4096).decode().splitlines():
+                pass
+            out["ready_s"] = time.monotonic() - t0
+            out["at_ready"] = _vm(proc.pid)
+            proc.send_signal(signal.SIGTERM)
+            proc.communicate(timeout=30.0)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    return out
+
+
 def measure_ready(trees: dict[str, Path], trials: int, work: Path) -> JSONDict:
-    """Spawn → READY=1 only (no frames), interleaved: more samples of the noisiest figure."""
+    """Spawn → READY=1 only (no frames), interleaved with the bare baselines: more samples
+    of the noisiest figure."""
     calibration = fit_calibration(work)
-    samples: dict[str, list[JSONDict]] = {name: [] for name in trees}
+    samples: dict[str, list[JSONDict]] = {name: [] for name in [*trees, *BARE_READY]}
     for k in range(trials):
         for name, src in trees.items():
             r = daemon_trial(src, calibration, [], work, 0.0, ready_only=True)
             samples[name].append(r)
+        for name in BARE_READY:
+            samples[name].append(bare_trial(name, work))
         log(f"ready round {k + 1}/{trials}: " + "  ".join(
             f"{n} {s[-1]['ready_s']:.2f} s" for n, s in samples.items()))
     summary = {name: {
@@ -389,7 +463,109 @@ def _frames(steady_s: float, rate_hz: float) -> Iterator[Any]:
     return iter(frames_from_run(synthetic_run(steady_s, rate_hz), encoder=FrameEncoder()))
 
 
+# --- 4. per-frame CPU of the pipeline ------------------------------------------------------
+
+CPU_CHILD = """
+import json, sys, time
+import numpy as np
+from gyrotherm.codecs import FrameDecoder, FrameEncoder, Run
+from gyrotherm.compensation import load_calibration
+from gyrotherm.daemon import Pipeline
+from gyrotherm.sim import frames_from_run
+
+cal_path, n_rate, period_s, passes = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), \\
+    int(sys.argv[4])
+rng = np.random.default_rng(1)
+t = np.arange(n_rate) / 1000.0
+temp = 20.0 + 10.0 * np.sin(2 * np.pi * t / max(float(t[-1]), 1.0))  # heats and cools
+rates = {a: 0.1 + 0.01 * rng.standard_normal(n_rate) for a in "xyz"}
+run = Run("bench-footprint-cpu", t, temp, rates,
+          metadata={"temperature_period_s": str(period_s)})
+msgs = list(frames_from_run(run, encoder=FrameEncoder(), t0_s=1_700_000_000.0))
+temp_id = FrameEncoder().layout.temperature.frame_id
+cal = load_calibration(cal_path)
+
+
+class Discard:
+    def put_rate(self, payload):
+        return None
+
+    def put_state(self, payload):
+        return None
+
+
+cpu = []
+for _ in range(passes):
+    pipe = Pipeline(FrameDecoder(), Discard(), calibration=cal)
+    process = pipe.process
+    t0 = time.process_time()
+    for m in msgs:
+        process(m, 1_700_000_000.0)
+    cpu.append(time.process_time() - t0)
+    c = pipe.counters()
+    assert c.frames_published == len(msgs), c  # everything through, nothing dropped
+print(json.dumps({"frames": len(msgs), "cpu_s": cpu,
+                  "temperature_frames": sum(m.arbitration_id == temp_id for m in msgs),
+                  "filterpy_loaded": "filterpy" in sys.modules}))
+"""
+CPU_STREAMS = {"daemon": 0.1, "temperature": 0.001}
+
+
+def measure_cpu(trees: dict[str, Path], trials: int, passes: int, n_rate: int,
+                work: Path) -> JSONDict:
+    calibration = fit_calibration(work)
+    samples: dict[str, dict[str, list[JSONDict]]] = {
+        stream: {name: [] for name in trees} for stream in CPU_STREAMS}
+    for k in range(trials):
+        for stream, period_s in CPU_STREAMS.items():
+            for name, src in trees.items():
+                done = subprocess.run(
+                    [sys.executable, "-c", CPU_CHILD, str(calibration), str(n_rate),
+                     str(period_s), str(passes)], capture_output=True, text=True,
+                    env=_env(src), cwd=work, timeout=600)  # fmt: skip
+                if done.returncode != 0:
+                    raise RuntimeError(f"cpu child failed: {done.stderr[-2000:]}")
+                r = json.loads(done.stdout)
+                r["us_per_frame"] = 1e6 * min(r["cpu_s"]) / r["frames"]
+                samples[stream][name].append(r)
+            log(f"cpu round {k + 1}/{trials} {stream}: " + "  ".join(
+                f"{n} {s[-1]['us_per_frame']:.2f} µs/frame" for n, s in samples[stream].items()))
+    summary: JSONDict = {}
+    for stream, by_tree in samples.items():
+        summary[stream] = {name: {
+            "us_per_frame_median": _round(median([r["us_per_frame"] for r in rs]), 3),
+            "frames": rs[0]["frames"], "temperature_frames": rs[0]["temperature_frames"],
+        } for name, rs in by_tree.items()}  # fmt: skip
+        summary[stream]["after_over_before"] = _ratio(
+            summary[stream]["after"]["us_per_frame_median"],
+            summary[stream]["before"]["us_per_frame_median"])
+        summary[stream]["after_over_before_paired"] = _paired(
+            by_tree, "after", "before", lambda r: r["us_per_frame"])
+    return {"summary": summary, "samples": samples}
+
+
 # --- before tree, ratios, main ------------------------------------------------------------
+
+
+@contextmanager
+def compiled(srcs: list[Path]) -> Iterator[list[str]]:
+    """Byte-compile each tree's gyrotherm package (as pip does at install); remove the
+    ``__pycache__`` directories that were not there before at the end."""
+    created: list[Path] = []
+    for src in srcs:
+        pkg = src / "gyrotherm"
+        before = set(pkg.rglob("__pycache__"))
+        subprocess.run([sys.executable, "-m", "compileall", "-q", str(pkg)], check=True,
+                       env=_env(None), capture_output=True)  # fmt: skip
+        created += [d for d in pkg.rglob("__pycache__") if d not in before]
+    try:
+        yield [str(d) for d in created]
+    finally:
+        for d in created:
+            for f in d.glob("*.pyc"):
+                f.unlink(missing_ok=True)
+            with contextlib.suppress(OSError):
+                d.rmdir()
 
 
 @contextmanager
@@ -447,9 +623,31 @@ def ratios(imports: JSONDict, daemons: JSONDict, ready: JSONDict) -> JSONDict:
     return out
 
 
+def ratios_to_bare(imports: JSONDict, ready: JSONDict, daemons: JSONDict) -> JSONDict:
+    """Each tree against the same run's bare baselines (the issue's bound: READY within
+    1.5 × the bare import; steady RSS ≤ 60 MB is absolute)."""
+    out: JSONDict = {}
+    r, i, d = ready["summary"], imports["summary"], daemons["summary"]
+    for tree in ("before", "after"):
+        if r:
+            for base in BARE_READY:
+                out[f"ready_{tree}_over_{base}"] = _ratio(r[tree]["ready_s_median"],
+                                                          r[base]["ready_s_median"])
+                out[f"ready_{tree}_over_{base}_paired"] = _paired(
+                    ready["samples"], tree, base, lambda x: x["ready_s"])
+        if i:
+            out[f"import_{tree}_over_deps_cantools"] = _ratio(
+                i[f"run_{tree}"]["import_s_median"], i["deps_cantools"]["import_s_median"])
+            out[f"import_{tree}_over_deps_cantools_paired"] = _paired(
+                imports["samples"], f"run_{tree}", "deps_cantools", lambda x: x["import_s"])
+        if d:
+            out[f"steady_rss_{tree}_MB"] = _round((d[tree]["rss_steady_kB_median"] or 0) / 1024, 1)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0] if __doc__ else None)
-    p.add_argument("--before-ref", default="c8433e0", help="git ref of BEFORE (default c8433e0)")
+    p.add_argument("--before-ref", default="7f136f8", help="git ref of BEFORE (default 7f136f8)")
     p.add_argument("--before-src", help="use this checkout's src/ as BEFORE (no worktree)")
     p.add_argument("--import-trials", type=int, default=9, help="fresh interpreters per tree")
     p.add_argument("--ready-trials", type=int, default=9,
@@ -458,19 +656,30 @@ def main(argv: list[str] | None = None) -> int:
                    help="spawn → READY → steady-state runs per tree")
     p.add_argument("--steady-s", type=float, default=20.0, help="seconds of frames per run")
     p.add_argument("--rate-hz", type=float, default=2000.0, help="rate frames per second")
-    p.add_argument("--parts", nargs="+", choices=("imports", "ready", "daemons"),
-                   default=["imports", "ready", "daemons"], help="what to measure (default all)")
+    p.add_argument("--cpu-trials", type=int, default=5, help="per-frame CPU rounds per tree")
+    p.add_argument("--cpu-passes", type=int, default=3, help="passes per CPU child (best of)")
+    p.add_argument("--cpu-rate-frames", type=int, default=50_000,
+                   help="rate frames per CPU pass")
+    p.add_argument("--parts", nargs="+", choices=("imports", "ready", "daemons", "cpu"),
+                   default=["imports", "ready", "daemons", "cpu"],
+                   help="what to measure (default all)")
+    p.add_argument("--bytecode", choices=("compiled", "source"), default="compiled",
+                   help="byte-compile both trees first, as a wheel install does (default), "
+                   "or run them as they are")
     p.add_argument("--quick", action="store_true",
-                   help="5 imports, 3 READY runs, 1 daemon run of 10 s")
+                   help="5 imports, 3 READY runs, 1 daemon run of 10 s, 3 CPU rounds")
     a = p.parse_args(argv)
     if a.quick:
         a.import_trials, a.ready_trials, a.daemon_trials, a.steady_s = 5, 3, 1, 10.0
+        a.cpu_trials, a.cpu_rate_frames = 3, 20_000
     t_begin = time.monotonic()
     result: JSONDict = {"bench": "footprint", "machine": machine(),
                         "settings": {k: v for k, v in vars(a).items() if k != "quick"}}
-    with before_tree(a) as before, tempfile.TemporaryDirectory(prefix="gyrotherm-fp-") as tmp:
+    with before_tree(a) as before, tempfile.TemporaryDirectory(prefix="gyrotherm-fp-") as tmp, \
+            compiled([before, AFTER_SRC] if a.bytecode == "compiled" else []) as pycache:
         trees = {"before": before, "after": AFTER_SRC}
         result["trees"] = {k: str(v) for k, v in trees.items()}
+        result["bytecode"] = {"mode": a.bytecode, "pycache_dirs_created": len(pycache)}
         empty: JSONDict = {"summary": {}, "samples": {}}
         result["imports"] = measure_imports(trees, a.import_trials) \
             if "imports" in a.parts else empty
@@ -478,8 +687,12 @@ def main(argv: list[str] | None = None) -> int:
             if "ready" in a.parts else empty
         result["daemons"] = measure_daemons(trees, a.daemon_trials, a.steady_s, a.rate_hz,
                                             Path(tmp)) if "daemons" in a.parts else empty
+        result["cpu"] = measure_cpu(trees, a.cpu_trials, a.cpu_passes, a.cpu_rate_frames,
+                                    Path(tmp)) if "cpu" in a.parts else empty
     result["ratios_after_over_before"] = ratios(result["imports"], result["daemons"],
                                                 result["ready"])
+    result["against_bare"] = ratios_to_bare(result["imports"], result["ready"],
+                                            result["daemons"])
     result["elapsed_s"] = round(time.monotonic() - t_begin, 1)
     i, d = result["imports"]["summary"], result["daemons"]["summary"]
     for name in i:
@@ -493,7 +706,12 @@ def main(argv: list[str] | None = None) -> int:
             f"{(d[name]['rss_at_ready_kB_median'] or 0) / 1024:.1f} MB  steady "
             f"{(d[name]['rss_steady_kB_median'] or 0) / 1024:.1f} MB  accounted "
             f"{d[name]['all_frames_accounted']}")
+    for stream, v in result["cpu"]["summary"].items():
+        log(f"cpu    {stream:11s} before {v['before']['us_per_frame_median']:.2f} µs/frame, "
+            f"after {v['after']['us_per_frame_median']:.2f} µs/frame: after/before "
+            f"{v['after_over_before']} (paired {v['after_over_before_paired']})")
     log(f"ratios after/before: {result['ratios_after_over_before']}")
+    log(f"against the bare baselines: {result['against_bare']}")
     print(json.dumps(result, indent=1))
     return 0
 
