@@ -1,6 +1,12 @@
 """The Rust client (clients/rust): its own tests (shared wire vectors, gaps, latency) and,
 end to end, its servo-loop example against a running daemon, compared message by
-message with what the Python ``Subscriber`` received on the same stream.
+message with what the Python ``Subscriber`` received on the same stream: a command only
+from a clean sample (flags 0), every flagged one skipped and counted, each output line
+RFC 8259 JSON (no NaN). Through the secured deployments of docs/operations.md (routers
+from deploy/zenoh as zenohd and as eclipse-zenoh: mutual TLS with acl-router.json5, a
+login with router.json5), the example with ``--zenoh-config`` gets the daemon's messages,
+and fails (exit 2, the reason on stderr) without a client certificate, with another CA's
+certificate or with a wrong password.
 
 Skips with a reason when cargo is absent; with cargo, a build error fails. Builds
 offline first (the crates cached in ~/.cargo), then online.
@@ -16,12 +22,16 @@ import shlex
 import shutil
 import subprocess
 import threading
+import uuid
+from collections.abc import Iterator
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
 import pytest
+import zenoh
 
-from gyrotherm._zenoh import keys, session_config
+from gyrotherm._zenoh import PLACEHOLDER_PASSWORD, keys, open_session, session_config
 from gyrotherm.bus import open_bus
 from gyrotherm.client import Subscriber
 from gyrotherm.codecs import FrameEncoder, RateMessage, Run
@@ -33,7 +43,10 @@ from gyrotherm.codecs._wire import (
     encode_health,
     encode_rate,
 )
-from streamkit import open_ephemeral, run_frames
+from gyrotherm.compensation import Calibration
+from gyrotherm.daemon import Daemon, parse_config
+from pkikit import make_pki
+from streamkit import free_port, open_ephemeral, run_frames
 
 ROOT = Path(__file__).resolve().parents[2]
 CRATE = ROOT / "clients" / "rust"
@@ -291,3 +304,290 @@ def _parser_values(argv: list[str]) -> dict[str, str]:
     """The example's ``--flag value`` pairs after ``--`` (what the README sets)."""
     rest = argv[argv.index("--") + 1 :]
     return {rest[i]: rest[i + 1] for i in range(0, len(rest), 2)}
+
+
+# --------------------------------------------------------- secured deployments
+# docs/operations.md, "Zenoh configurations" and "Threat model": a router from
+# deploy/zenoh (acl-router.json5: mutual TLS only, access by certificate CN;
+# router.json5: usrpwd login, access by user name), run as zenohd and as eclipse-zenoh
+# in router mode; the real daemon a client of it under its own identity; the Rust
+# example with ``--zenoh-config`` a viewer's copy of the shipped client file, edited
+# as a user would (addresses, files, login). The Python Subscriber opens the same file
+# (``open_session(config_file=...)``) on the same router as the reference.
+
+DEPLOY_ZENOH = ROOT / "deploy" / "zenoh"
+PASSWORDS = {"gyrotherm-daemon": "daemon-secret-5e1d", "gyrotherm-viewer": "viewer-secret-c07a"}
+
+
+def _edit(text: str, old: str, new: str, count: int = 1) -> str:
+    assert text.count(old) == count, f"expected {old!r} {count}× in the shipped file"
+    return text.replace(old, new)
+
+
+def _tls_client_file(path: Path, pki: Path, name: str, endpoint: str, *,
+                     certificate: bool = True, timeout_ms: int | None = None) -> Path:  # fmt: skip
+    """tls-mutual.json5 as a client of the router at ``endpoint`` with the node's
+    certificate (CN ``name``) or, ``certificate=False``, none (the CA only)."""
+    text = (DEPLOY_ZENOH / "tls-mutual.json5").read_text(encoding="utf-8")
+    text = _edit(text, 'mode: "peer"', 'mode: "client"')
+    text = _edit(text, '"tls/127.0.0.1:7447",', "")  # a client does not listen
+    text = _edit(text, '// "tls/192.168.50.1:7447",', json.dumps(endpoint) + ",")
+    text = _edit(text, "/etc/gyrotherm/tls/ca.pem", str(pki / "test-ca.pem"))
+    text = _edit(text, "/etc/gyrotherm/tls/gyrotherm-key.pem", str(pki / f"{name}-key.pem"), 2)
+    text = _edit(text, "/etc/gyrotherm/tls/gyrotherm.pem", str(pki / f"{name}.pem"), 2)
+    if not certificate:
+        lines = text.splitlines(keepends=True)
+        kept = [ln for ln in lines if not re.match(r"\s*connect_(certificate|private_key):", ln)]
+        assert len(lines) - len(kept) == 2
+        text = "".join(kept)
+    if timeout_ms is not None:
+        text = _edit(text, "connect: {", f"connect: {{\n    timeout_ms: {timeout_ms},")
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _login_file(path: Path, endpoint: str, user: str, password: str,
+                timeout_ms: int | None = None) -> Path:  # fmt: skip
+    """client-of-router.json5 with the router's address and ``user``'s login."""
+    text = (DEPLOY_ZENOH / "client-of-router.json5").read_text(encoding="utf-8")
+    text = _edit(text, '"tcp/127.0.0.1:7447"', json.dumps(endpoint))
+    text = _edit(text, 'user: "gyrotherm-daemon"', f"user: {json.dumps(user)}")
+    text = _edit(text, PLACEHOLDER_PASSWORD, password)
+    if timeout_ms is not None:
+        text = _edit(text, "timeout_ms: 20000", f"timeout_ms: {timeout_ms}")
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _router_text(name: str, endpoint: str, pki: Path, users: Path) -> str:
+    text = (DEPLOY_ZENOH / name).read_text(encoding="utf-8")
+    proto = endpoint.split("/", 1)[0]
+    text = _edit(text, f'"{proto}/127.0.0.1:7447"', json.dumps(endpoint))
+    if name == "acl-router.json5":
+        text = _edit(text, "/etc/zenoh/tls/ca.pem", str(pki / "test-ca.pem"))
+        text = _edit(text, "/etc/zenoh/tls/router-key.pem", str(pki / "gyrotherm-router-key.pem"))
+        text = _edit(text, "/etc/zenoh/tls/router.pem", str(pki / "gyrotherm-router.pem"))
+    else:
+        text = _edit(text, "/etc/zenoh/gyrotherm-users.txt", str(users))
+    return text
+
+
+@contextmanager
+def _router(kind: str, name: str, pki: Path, tmp: Path) -> Iterator[str]:
+    """deploy/zenoh/``name`` running as ``kind``; yield the endpoint it listens on."""
+    users = tmp / "gyrotherm-users.txt"
+    users.write_text("".join(f"{u}:{p}\n" for u, p in PASSWORDS.items()), encoding="utf-8")
+    proto = "tls" if name == "acl-router.json5" else "tcp"
+    if kind == "eclipse-zenoh":
+        config = zenoh.Config.from_json5(_router_text(name, f"{proto}/127.0.0.1:0", pki, users))
+        session, endpoint = open_ephemeral(config)
+        try:
+            yield endpoint
+        finally:
+            session.close()
+        return
+    zenohd = shutil.which("zenohd") or shutil.which(str(Path.home() / ".cargo/bin/zenohd"))
+    if zenohd is None:
+        pytest.skip("zenohd not found (PATH, ~/.cargo/bin): the eclipse-zenoh variant runs "
+                    "the same router engine")  # fmt: skip
+    endpoint = f"{proto}/127.0.0.1:{free_port()}"
+    path = tmp / f"zenohd-{name}"
+    path.write_text(_router_text(name, endpoint, pki, users), encoding="utf-8")
+    with (tmp / "zenohd.log").open("w") as log:
+        proc = subprocess.Popen([zenohd, "-c", str(path)], stdout=log, stderr=subprocess.STDOUT,
+                                env={"RUST_LOG": "info", "PATH": "/usr/bin:/bin"})  # fmt: skip
+        try:
+            yield endpoint
+        finally:
+            proc.terminate()
+            try:
+                proc.wait(TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(TIMEOUT_S)
+
+
+@contextmanager
+def _daemon_via(zenoh_file: Path, calibration: Calibration, tmp: Path) -> Iterator[str]:
+    """The real daemon, its zenoh session from ``zenoh_file``; yield its CAN channel."""
+    channel = f"sec-{uuid.uuid4().hex[:8]}"
+    cfg = parse_config({
+        "vehicle": "testcar", "sensor": "imu0",
+        "calibration": str(calibration.save(tmp / "cal.json")), "health_period_s": 0.2,
+        "can": {"interface": "virtual", "channel": channel, "recv_timeout_s": 0.05},
+        "zenoh": {"config": str(zenoh_file)},
+    }, base_dir=tmp)  # fmt: skip
+    daemon = Daemon(cfg)
+    failure: list[BaseException] = []
+
+    def run() -> None:
+        try:
+            daemon.run()
+        except BaseException as exc:  # reported below, not lost in the thread
+            failure.append(exc)
+            daemon.ready.set()
+
+    thread = threading.Thread(target=run, name="daemon", daemon=True)
+    thread.start()
+    try:
+        assert daemon.ready.wait(TIMEOUT_S * 2), "daemon not ready"
+        assert not failure, f"daemon failed to start: {failure[0]!r}"
+        yield channel
+    finally:
+        daemon.stop()
+        thread.join(TIMEOUT_S)
+
+
+def _stop(proc: subprocess.Popen[str]) -> None:
+    if proc.poll() is None:
+        proc.kill()
+    proc.wait()
+
+
+def _servo_loop(*args: str) -> list[str]:
+    return [_cargo(), "run", "--offline", "--quiet", "--example", "servo_loop", "--",
+            "--vehicle", "testcar", "--sensor", "imu0", *args]  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def pki(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    if shutil.which("openssl") is None:
+        pytest.skip("the openssl CLI is not installed: cannot make test certificates")
+    return Path(make_pki(tmp_path_factory.mktemp("pki"),
+                         ("gyrotherm-router", "gyrotherm-daemon", "gyrotherm-viewer"),
+                         "gyrotherm-viewer-rogue"))  # fmt: skip
+
+
+ROUTERS = ["acl-router.json5", "router.json5"]
+KINDS = ["zenohd", "eclipse-zenoh"]
+
+
+def _client_files(name: str, tmp: Path, pki: Path, endpoint: str) -> tuple[Path, Path]:
+    """The daemon's and the viewer's client file for the router ``name``."""
+    if name == "acl-router.json5":
+        return (_tls_client_file(tmp / "daemon.json5", pki, "gyrotherm-daemon", endpoint,
+                                 timeout_ms=int(TIMEOUT_S * 1000)),
+                _tls_client_file(tmp / "viewer.json5", pki, "gyrotherm-viewer", endpoint))
+    return (_login_file(tmp / "daemon.json5", endpoint, "gyrotherm-daemon",
+                        PASSWORDS["gyrotherm-daemon"]),
+            _login_file(tmp / "viewer.json5", endpoint, "gyrotherm-viewer",
+                        PASSWORDS["gyrotherm-viewer"]))  # fmt: skip
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("name", ROUTERS)
+def test_rust_servo_loop_through_a_secured_router(
+    built: None, pki: Path, tmp_path: Path, runs: list[Run], calibration: Calibration,
+    name: str, kind: str,
+) -> None:
+    """The daemon (CN / user gyrotherm-daemon) publishes through the router; the Rust
+    example, with the viewer's file, gets every rate message the Python Subscriber
+    gets with the same file, and the daemon's calibration id through the router."""
+    run = runs[1].slice(0, 100)
+    frames = list(run_frames(run, FrameEncoder()))
+    n = len(run)
+    with ExitStack() as stack:
+        endpoint = stack.enter_context(_router(kind, name, pki, tmp_path))
+        daemon_file, viewer_file = _client_files(name, tmp_path, pki, endpoint)
+        channel = stack.enter_context(_daemon_via(daemon_file, calibration, tmp_path))
+        rates: list[RateMessage] = []
+        sub = stack.enter_context(Subscriber(
+            "testcar", "imu0", session=open_session(config_file=viewer_file),
+            on_rate=rates.append))  # fmt: skip
+        stack.callback(sub.session.close)
+        assert sub.wait_for(lambda s: s.health.received >= 1, timeout_s=TIMEOUT_S)
+        calibration_id = sub.query_calibration(timeout_s=TIMEOUT_S).calibration_id
+        bus = stack.enter_context(open_bus(interface="virtual", channel=channel))
+        proc = subprocess.Popen(
+            _servo_loop("--zenoh-config", str(viewer_file), "--max-samples", str(n), "--json",
+                        "--timeout-s", str(TIMEOUT_S)),
+            cwd=CRATE, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+        stack.callback(_stop, proc)
+        lines: queue.Queue[str | None] = queue.Queue()
+        threading.Thread(target=_reader, args=(proc.stdout, lines), daemon=True).start()
+        ready = _next_json(lines, proc)  # Rust got a health message through the router
+        for msg in frames:
+            bus.send(msg)
+        got = [_next_json(lines, proc) for _ in range(n)]
+        done = _next_json(lines, proc)
+        assert proc.wait(TIMEOUT_S) == 0
+        assert sub.wait_for(lambda s: s.rate.received >= n, timeout_s=TIMEOUT_S)
+    assert ready == {"event": "ready", "calibration_id": calibration_id}
+    assert calibration_id
+    check_events(got, rates, gain=2.0)
+    assert [g["seq"] for g in got] == list(range(got[0]["seq"], got[0]["seq"] + n))
+    assert done["samples"] == n and done["rate"]["gaps"] == 0
+    assert done["commands"] == sum(not m.flags for m in rates) > 0
+
+
+#: the example's stderr when zenoh cannot open the session of a config file (%s: the file)
+_OPEN_FAILED = (r'servo_loop: cannot open zenoh session \(config file "%s"\): Unable to connect '
+                r".+ \(unreachable, or the router/peer refused this session: .+\)\n")
+
+
+def _ready_only(viewer_file: Path) -> subprocess.CompletedProcess[str]:
+    """The example up to its ``ready`` line (the daemon's health and calibration reply
+    arrived), then done (``--max-samples 0``)."""
+    return subprocess.run(
+        _servo_loop("--zenoh-config", str(viewer_file), "--max-samples", "0", "--json",
+                    "--timeout-s", "5", "--ready-timeout-s", "5"),
+        cwd=CRATE, text=True, capture_output=True, timeout=TIMEOUT_S * 3)  # fmt: skip
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_rust_refused_without_a_client_certificate(
+    built: None, pki: Path, tmp_path: Path, calibration: Calibration, kind: str
+) -> None:
+    """acl-router.json5 admits mutual TLS only: the viewer's file without its
+    certificate (CA only), or with a certificate of another CA, cannot open a session:
+    exit status 2 and the reason on stderr, no output. The daemon is up and a viewer
+    with the right certificate gets through (control), so only the certificate differs."""
+    with ExitStack() as stack:
+        endpoint = stack.enter_context(_router(kind, "acl-router.json5", pki, tmp_path))
+        daemon_file, viewer_file = _client_files("acl-router.json5", tmp_path, pki, endpoint)
+        stack.enter_context(_daemon_via(daemon_file, calibration, tmp_path))
+        control = _ready_only(viewer_file)
+        assert control.returncode == 0 and strict_json(control.stdout.splitlines()[0])[
+            "event"] == "ready", control.stderr  # fmt: skip
+        for label, bad in {
+            "no certificate": _tls_client_file(tmp_path / "nocert.json5", pki,
+                                               "gyrotherm-viewer", endpoint, certificate=False),
+            "another CA's certificate": _tls_client_file(
+                tmp_path / "rogue.json5", pki, "gyrotherm-viewer-rogue", endpoint),
+        }.items():  # fmt: skip
+            out = _ready_only(bad)
+            print(f"{label}: exit {out.returncode}: {out.stderr.strip()}")
+            assert out.returncode == 2, (label, out.stdout, out.stderr)
+            assert out.stdout == "", label
+            assert re.fullmatch(rf"{_OPEN_FAILED % re.escape(str(bad))}", out.stderr), (
+                label, out.stderr)  # fmt: skip
+            assert ".rs:" not in out.stderr
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_rust_refused_with_a_wrong_password(
+    built: None, pki: Path, tmp_path: Path, calibration: Calibration, kind: str
+) -> None:
+    """router.json5 requires a login: the viewer's file with a wrong password, or the
+    shipped placeholder, cannot open a session (exit status 2, the reason on stderr);
+    the same file with the right password gets through (control). The wrong-password
+    file waits ``connect/timeout_ms`` for the router to accept it (the shipped 20 s,
+    2 s here) and then fails."""
+    with ExitStack() as stack:
+        endpoint = stack.enter_context(_router(kind, "router.json5", pki, tmp_path))
+        daemon_file, viewer_file = _client_files("router.json5", tmp_path, pki, endpoint)
+        stack.enter_context(_daemon_via(daemon_file, calibration, tmp_path))
+        control = _ready_only(viewer_file)
+        assert control.returncode == 0 and strict_json(control.stdout.splitlines()[0])[
+            "event"] == "ready", control.stderr  # fmt: skip
+        wrong = _login_file(tmp_path / "wrong.json5", endpoint, "gyrotherm-viewer",
+                            "guessed-password", timeout_ms=2000)  # fmt: skip
+        out = _ready_only(wrong)
+        print(f"wrong password: exit {out.returncode}: {out.stderr.strip()}")
+        assert out.returncode == 2 and out.stdout == "", (out.stdout, out.stderr)
+        assert re.fullmatch(_OPEN_FAILED % re.escape(str(wrong)), out.stderr), out.stderr
+        placeholder = tmp_path / "placeholder.json5"
+        placeholder.write_text((DEPLOY_ZENOH / "client-of-router.json5").read_text())
+        out = _ready_only(placeholder)
+        assert out.returncode == 2 and out.stdout == ""
+        assert "transport/auth/usrpwd/password is still the shipped placeholder" in out.stderr

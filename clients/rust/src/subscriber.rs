@@ -411,7 +411,15 @@ impl Subscriber {
         let path = config_file.as_ref();
         let config = session_config_file(path)?;
         let source = format!("config file {:?}", path.display().to_string());
-        Self::open(vehicle, sensor, config, queue_size, &source)
+        // zenoh does not say why a link failed: name what the file controls
+        Self::open(vehicle, sensor, config, queue_size, &source).map_err(|e| match e {
+            Error::Zenoh(text) if text.contains("Unable to connect") => Error::Zenoh(format!(
+                "{text} (unreachable, or the router/peer refused this session: check the \
+                 address, the login in transport/auth/usrpwd and the certificates in \
+                 transport/link/tls)"
+            )),
+            other => other,
+        })
     }
 
     /// Open a session from a [`zenoh::Config`] the caller built, and subscribe as
