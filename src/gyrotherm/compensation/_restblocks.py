@@ -4,6 +4,7 @@ and the level-change test (:mod:`gyrotherm.compensation._rest` puts them togethe
 
 from __future__ import annotations
 
+import itertools
 import warnings
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
@@ -99,11 +100,12 @@ def spans(flags: BoolArray, breaks: IndexArray | None = None) -> list[tuple[int,
     """[start, stop) index spans where ``flags`` is True; a span is also cut at each
     index of ``breaks`` (the first row or block after a logging gap)."""
     edges = np.diff(np.concatenate(([0], flags.astype(np.int8), [0])))
-    out = []
+    out: list[tuple[int, int]] = []
+    cut_at = np.zeros(0, dtype=np.intp) if breaks is None else np.sort(breaks)
     for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
-        cuts = [] if breaks is None else [int(c) for c in breaks if a < c < b]
-        for lo, hi in zip([int(a), *cuts], [*cuts, int(b)], strict=True):
-            out.append((lo, hi))
+        inside = cut_at[np.searchsorted(cut_at, a, side="right"):np.searchsorted(cut_at, b)]
+        bounds = [int(a), *(int(c) for c in inside), int(b)]
+        out.extend(itertools.pairwise(bounds))
     return out
 
 
