@@ -6,8 +6,9 @@ real-log corpus.
 The timeline (:data:`SCHEDULE`) holds what rest detection must get right: still
 stretches on the ground, a hand-carried turn, armed rows sitting still (motors idling),
 a flight turning at up to 180 °/s with a constant-rate yaw, a 20-s still stretch between
-the landing and a 35-s logging gap in which the vehicle turned (three rows of it logged),
-and still stretches after. Every value comes from a seeded generator: the truth per row
+the landing and a 35-s logging gap, 15 s still after the gap before a turn (20 + 15 s of
+rows, but 70 s from first to last: the gap once counted toward the 30-s minimum), and
+still stretches after. Every value comes from a seeded generator: the truth per row
 (turning, armed, logged in the gap) is known here, independently of gyrotherm.
 """
 
@@ -26,17 +27,18 @@ import ulogkit as uk
 RATE_HZ = 25.0
 G_MPS2 = 9.80665
 #: (start s, end s, what): "still", "turn" (hand-carried, disarmed), "idle" (armed,
-#: still, motors idling), "fly" (armed, turning), "gap" (not logged but for 3 rows).
+#: still, motors idling), "fly" (armed, turning), "gap" (not logged).
 SCHEDULE = (
     (0.0, 120.0, "still"), (120.0, 150.0, "turn"), (150.0, 200.0, "still"),
     (200.0, 260.0, "idle"), (260.0, 380.0, "fly"), (380.0, 400.0, "idle"),
-    (400.0, 420.0, "still"), (420.0, 455.0, "gap"), (455.0, 520.0, "still"),
-    (520.0, 530.0, "turn"), (530.0, 600.0, "still"),
+    (400.0, 420.0, "still"), (420.0, 455.0, "gap"), (455.0, 470.0, "still"),
+    (470.0, 480.0, "turn"), (480.0, 520.0, "still"), (520.0, 530.0, "turn"),
+    (530.0, 600.0, "still"),
 )
-GAP_ROWS_S = (430.0, 440.0, 450.0)
-"""The rows logged inside the gap, each turning at 180 °/s."""
 #: Stretches that are truly still, disarmed and long enough to be kept (each 2 s inside).
-KEEP_S = ((0.0, 118.0), (152.0, 198.0), (457.0, 518.0), (532.0, 600.0))
+KEEP_S = ((0.0, 118.0), (152.0, 198.0), (482.0, 518.0), (532.0, 600.0))
+#: Still and disarmed, but each side of the gap shorter than 30 s.
+SHORT_BY_GAP_S = ((400.0, 420.0), (455.0, 470.0))
 DEVICE_ID = 2490378  # a PX4 DeviceStructure: SPI bus 1, address 0, devtype 0x26
 
 
@@ -55,11 +57,7 @@ def flight(seed: int = 18, *, duration_s: float = 600.0) -> Flight:
     kind = np.full(len(t), "still", dtype=object)
     for a, b, what in SCHEDULE:
         kind[(t >= a) & (t < b)] = what
-    in_gap = kind == "gap"
-    logged_gap = np.zeros(len(t), dtype=bool)
-    for s in GAP_ROWS_S:
-        logged_gap[np.argmin(np.abs(t - s))] = True
-    keep_row = ~in_gap | logged_gap
+    keep_row = kind != "gap"
     temp = 25.0 + 15.0 * (1.0 - np.exp(-t / 300.0))
     rates = rng.standard_normal((len(t), 3)) * 0.05 + np.array([0.3, -0.2, 0.1])
     rates += 0.01 * (temp - 25.0)[:, None]  # a thermal bias slope, 0.01 °/s/°C
@@ -79,7 +77,6 @@ def flight(seed: int = 18, *, duration_s: float = 600.0) -> Flight:
             yaw = (t[m] >= 300.0) & (t[m] < 330.0)  # a constant-rate yaw, 20 °/s
             rates[np.flatnonzero(m)[yaw], 2] += 20.0
             acc[m] += rng.standard_normal((int(m.sum()), 3)) * 3.0
-    rates[logged_gap, 0] += 180.0
     armed = np.isin(kind, ["idle", "fly"])
     return Flight(time_s=t[keep_row], rates_dps=rates[keep_row], accel_mps2=acc[keep_row],
                   temperature_c=temp[keep_row], armed=armed[keep_row])
