@@ -80,7 +80,7 @@ REST_MIN_SEGMENT_FRACTION = 0.5
 """Of the time the log covers: the minimum rest stretch of a log shorter than 60 s."""
 REST_MIN_RATE_DPS = 0.05
 REST_MAX_RATE_DPS = 5.0
-REST_MAX_RATE_STD_DPS = 1.0
+REST_MAX_RATE_STD_DPS = 2.0
 REST_MAX_ACCEL_STD_MPS2 = 0.5
 REST_MAX_ACCEL_G_ERROR_MPS2 = 2.0
 REST_GAP_S = 1.0
