@@ -90,6 +90,42 @@ def test_rust_crate_tests_pass(built: None) -> None:
     assert "every_vector_decodes_to_its_fields ... ok" in out.stdout
 
 
+def _declared_rust_version() -> str:
+    found = re.findall(r'^rust-version = "([0-9.]+)"$', (CRATE / "Cargo.toml").read_text(), re.M)
+    assert len(found) == 1, "Cargo.toml: one rust-version"
+    return str(found[0])
+
+
+def test_rust_crate_builds_with_its_declared_minimum_rust_version() -> None:
+    """``rust-version`` in Cargo.toml is checked, not just declared: that toolchain builds
+    every target (lib, example, tests) with the locked dependencies. Skips, naming the
+    install command, when the toolchain is not installed (rustup does not install it by
+    itself here: RUSTUP_AUTO_INSTALL=0 in CI)."""
+    cargo = _cargo()
+    msrv = _declared_rust_version()
+    version = f"{msrv}.0" if msrv.count(".") == 1 else msrv
+    rustup = shutil.which("rustup") or shutil.which(str(Path.home() / ".cargo" / "bin" / "rustup"))
+    installed = subprocess.run([rustup, "toolchain", "list"], text=True, capture_output=True,
+                               timeout=60).stdout if rustup else ""  # fmt: skip
+    if not re.search(rf"^{re.escape(version)}-", installed, re.M):
+        pytest.skip(f"Rust {version} (Cargo.toml rust-version) is not installed: "
+                    f"`rustup toolchain install {version} --profile minimal` to check it")
+    assert rustup is not None
+    target = CRATE / "target" / f"msrv-{version}"
+    args = [f"+{version}", "build", "--locked", "--all-targets", "--target-dir", str(target)]
+    env = {**os.environ, "CARGO_TERM_COLOR": "never", "RUSTUP_AUTO_INSTALL": "0"}
+    out = subprocess.run([cargo, *args, "--offline"], cwd=CRATE, env=env, text=True,
+                         capture_output=True, timeout=BUILD_TIMEOUT_S)  # fmt: skip
+    if out.returncode != 0 and "offline" in out.stderr:
+        out = subprocess.run([cargo, *args], cwd=CRATE, env=env, text=True,
+                             capture_output=True, timeout=BUILD_TIMEOUT_S)  # fmt: skip
+    assert out.returncode == 0, f"cargo +{version} build failed:\n{out.stderr[-4000:]}"
+    assert "warning:" not in out.stderr, out.stderr[-4000:]
+    rustc = subprocess.run([rustup, "run", version, "rustc", "--version"], text=True,
+                           capture_output=True, timeout=60).stdout  # fmt: skip
+    assert rustc.startswith(f"rustc {version} "), rustc
+
+
 def _readme_command() -> list[str]:
     text = README.read_text(encoding="utf-8")
     start = text.index("## Consuming the rates outside Python")
