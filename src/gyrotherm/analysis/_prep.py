@@ -3,9 +3,11 @@
 Per run (one rate axis):
 
 1. the temperature readout is characterised from the readings themselves:
-   update period (the shortest interval between changes that recurs), LSB
-   (the grid the readings sit on) and white noise (from successive fresh
-   readings);
+   refresh period (the comb every gap between changes sits on,
+   :func:`_refresh_from_changes`), LSB (the grid the readings sit on) and white
+   noise (second differences a refresh apart, less the quantisation);
+   tests/analysis/test_readout_table.py checks all three against a generator's
+   truth over refresh 0.05…1.28 s, LSB 0.0625…1 °C and 10…200 Hz;
 2. the product's Kalman estimator (:func:`gyrotherm.estimators.estimate_series`)
    runs over the readings, fed at most once per ``max(update period, 1 s)``,
    giving T and dT/dt; ΔT = τ·dT/dt, where τ is regressed from the logged
@@ -57,6 +59,12 @@ class Readout:
     refresh_period_s: float = 0.0
     """The readout's refresh period, not rounded to the row interval (mean of the single
     refresh intervals, e.g. 1.28 s where ``period_s`` says 1.3 s at 10 Hz), s; 0: unknown."""
+    white_noise_c: float = 0.0
+    """The readings' white noise σ before rounding, °C (:func:`_white_noise`; 0 where the
+    rounding hides it). ``noise_c`` is the scatter between successive *changes* of the
+    reading, √(σ² + LSB²/12) or one LSB step (LSB/√2) where the rounding hides σ: the
+    quantity the estimator settings, the lag's null replay and the simulator calibration
+    were validated with."""
 
 
 @dataclass(frozen=True)
@@ -90,31 +98,100 @@ def _grid_step(values: FloatArray, *, floor: float) -> float:
     return step if float(np.max(np.abs(k - np.round(k)))) < 0.05 else 0.0
 
 
+#: Candidate refresh periods scanned per run (log-spaced from 1.5 row intervals to the
+#: shortest gap between changes plus one row).
+_CANDIDATES = 4000
+#: A gap "fits" a candidate P' when it is a whole multiple of P' within this many row
+#: intervals (a change is seen at the first row after its refresh: up to one row off
+#: per gap, whole rows when the refresh is commensurate with the rows; 10 % for the
+#: stamps' jitter).
+_FIT_ROWS = 1.1
+#: The least share of gaps that must fit.
+_FIT_MIN = 0.8
+_MAX_GAPS = 5000
+
+
+def _refresh_from_changes(t: FloatArray, change: NDArray[np.int64], dt: float) -> float:
+    """The readout's refresh period from the times its value changed (s).
+
+    A reading can only change at a refresh, so every gap g between two changes is a
+    whole multiple n·P of the refresh P, give or take the row grid: a change is seen
+    at the first row after its refresh, so each gap is off by less than one row
+    interval dt. A quantised, slowly moving temperature repeats its value for several
+    refreshes, so the gaps' small percentiles or their minimum give 2P, 5P …, not P.
+    Instead each candidate P' (log-spaced, then snapped to the comb it selects: the
+    least-squares period of the gaps given their multiples n = round(g/P')) is scored
+    by the share F(P') of gaps within :data:`_FIT_ROWS`·dt of a multiple of it. The
+    refresh and its divisors P/m fit (almost) every gap; a multiple kP fits only the
+    gaps whose stride is a multiple of k (a steady ramp whose value changes every 15
+    or 16 refreshes fits none of 7.75P); a candidate off the comb drifts out of
+    tolerance over n refreshes. The refresh is
+    the *largest* candidate whose F reaches :data:`_FIT_MIN`, refined as
+    Σ g / Σ round(g/P) over gaps of ≤ 3 and then ≤ 10 refreshes. Candidates stop at
+    the shortest gap plus a row (no refresh is longer); changes on consecutive rows
+    (shortest gap one row), or no candidate qualifying, mean every row is fresh
+    (refresh = dt): a refresh under 1.5 rows cannot be told from the rows."""
+    gaps = np.diff(t[change])
+    if len(gaps) > _MAX_GAPS:  # evenly spread: the whole run, bounded cost
+        gaps = gaps[np.linspace(0, len(gaps) - 1, _MAX_GAPS).astype(np.int64)]
+    lo, hi = 1.5 * dt, float(np.min(gaps)) + dt
+    if hi <= lo or np.count_nonzero(gaps < lo) > 0.01 * len(gaps):
+        return dt  # changes on consecutive rows: every row is fresh
+    tol = _FIT_ROWS * dt
+    cand = np.geomspace(lo, hi, _CANDIDATES)
+    snapped, fit = np.empty(len(cand)), np.empty(len(cand))
+    for i, p in enumerate(cand):  # each candidate snapped to the comb it selects
+        n = np.maximum(np.round(gaps / p), 1.0)
+        q = float(np.dot(gaps, n) / np.dot(n, n))
+        err = gaps - n * q
+        snapped[i] = q
+        fit[i] = np.count_nonzero(np.abs(err) <= tol) / len(gaps)
+    ok = np.flatnonzero((fit >= _FIT_MIN) & (snapped >= lo))
+    if len(ok) == 0:
+        return dt
+    refresh = float(np.max(snapped[ok]))
+    for limit in (3.5, 10.0):
+        g = gaps[gaps < limit * refresh]
+        k = np.round(g / refresh)
+        if np.sum(k) > 0:
+            refresh = float(np.sum(g) / np.sum(k))
+    return refresh
+
+
+def _white_noise(t: FloatArray, temp: FloatArray, refresh_s: float, lsb_c: float) -> float:
+    """White noise of the readings, °C: second differences at a lag of L rows, L·dt the
+    refresh rounded up, so that the three readings come from three different refreshes
+    (no phase to track: a hold never pairs a reading with itself); a linear trend drops
+    out and var = 6σ². Less the quantisation's LSB²/12 (valid while σ ≳ LSB/2; below
+    that the rounding hides the noise and LSB/√12 bounds it)."""
+    dt = float(np.median(np.diff(t)))
+    lag = max(1, math.ceil(refresh_s / dt - 0.01))
+    if len(temp) < 2 * lag + 5:
+        return 0.02
+    d2 = temp[2 * lag:] - 2.0 * temp[lag:-lag] + temp[:-2 * lag]
+    total = float(np.var(d2)) / 6.0
+    return math.sqrt(max(total - lsb_c * lsb_c / 12.0, 0.0))
+
+
 def characterise(run: Run, axis: str) -> Readout:
-    """Readout period, LSB and noise of the temperature sensor; rate LSB and noise."""
+    """Readout period, LSB and noise of the temperature sensor; rate LSB and noise.
+
+    ``refresh_period_s``: :func:`_refresh_from_changes`; ``period_s``: that period on
+    the row grid (a multiple of the row interval); ``lsb_c``: the grid the readings sit
+    on; ``white_noise_c``: :func:`_white_noise`; ``noise_c``: the scatter between
+    changes (the field's docstring)."""
     t = run.time_s
     if len(t) < 10:
         raise CalibrationError(f"{run.source}: run {run.name!r} has {len(t)} rows, need ≥ 10")
     dt = float(np.median(np.diff(t)))
     temp = run.temperature_c
     change = np.flatnonzero(np.diff(temp) != 0) + 1
-    period = dt
-    if len(change) > 10:
-        gaps = np.diff(t[change])
-        period = max(dt, float(np.percentile(gaps, 10)))
-        period = dt * round(period / dt) if period > 1.5 * dt else dt
-    refresh = period
-    if period > 1.5 * dt:  # Σ gaps / Σ refreshes they span: first over gaps of ≤ 3
-        gaps = np.diff(t[change])  # refreshes (robust to the grid's rounding), then ≤ 10
-        for limit in (3.5, 10.0):
-            g = gaps[gaps < limit * refresh]
-            k = np.round(g / refresh)
-            if np.sum(k) > 0:
-                refresh = float(np.sum(g) / np.sum(k))
-    fresh_idx = np.r_[0, change] if period > 1.5 * dt else np.arange(len(t))
+    refresh = _refresh_from_changes(t, change, dt) if len(change) > 10 else dt
+    period = dt * round(refresh / dt) if refresh > 1.5 * dt else dt
     lsb = _grid_step(temp[: min(len(temp), 200_000)], floor=1e-7)
-    fresh = temp[fresh_idx]
-    noise = float(np.std(np.diff(fresh)) / math.sqrt(2)) if len(fresh) > 3 else 0.02
+    white = _white_noise(t, temp, refresh, lsb)
+    noise = max(math.sqrt(white * white + lsb * lsb / 12.0), lsb / math.sqrt(2)) if lsb > 0 \
+        else white
     rate = run.rates_dps[axis]
     rate_lsb = _grid_step(rate[: min(len(rate), 200_000)], floor=1e-9)
     return Readout(
@@ -125,6 +202,7 @@ def characterise(run: Run, axis: str) -> Readout:
         rate_lsb_dps=rate_lsb,
         sample_noise_dps=float(np.std(np.diff(rate)) / math.sqrt(2)),
         refresh_period_s=refresh,
+        white_noise_c=white,
     )
 
 
@@ -134,7 +212,9 @@ def estimator_for(readouts: Sequence[Readout], tau_s: float = DEFAULT_TAU_S) -> 
                  BLOCK_S)
     lsb = float(np.median([r.lsb_c for r in readouts]))
     noise = float(np.median([r.noise_c for r in readouts]))
-    # a quantised, noiseless-looking reading: its noise is the quantisation itself
+    # a quantised, noiseless-looking reading: its noise is the quantisation itself (the
+    # rule validated in docs/findings.md §5, §6; choosing it by held-out deployed error
+    # instead is open)
     noise = max(noise - lsb / math.sqrt(6), 0.005) if lsb > 0 else noise
     return EstimatorConfig(tau_s=tau_s, noise_c=noise, quantisation_c=max(lsb, 1e-4),
                            update_period_s=period)
