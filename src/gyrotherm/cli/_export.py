@@ -153,11 +153,30 @@ def _device_id(args: argparse.Namespace, cal: Calibration) -> int:
                           "--device-id N") from None
 
 
+def _instance(args: argparse.Namespace, cal: Calibration) -> int:
+    """The slot: ``--instance``, else the IMU instance the calibration recorded (fit writes
+    it for a log of several IMUs), else 0; a disagreement with the recorded one is refused."""
+    recorded = cal.provenance.get("instance")
+    if recorded is not None and (isinstance(recorded, bool) or not isinstance(recorded, int)):
+        raise ConfigError(f"{args.calibration}: provenance 'instance' = {recorded!r} is not "
+                          "an integer")
+    if args.instance is None:
+        return 0 if recorded is None else recorded
+    if recorded is not None and recorded != args.instance:
+        raise ConfigError(f"--instance {args.instance}: the calibration is of IMU instance "
+                          f"{recorded} (device {cal.provenance.get('device_id')!r}); its "
+                          f"parameters belong in slot {recorded} (drop --instance)")
+    return int(args.instance)
+
+
 def cmd_export(args: argparse.Namespace) -> int:
     if not (args.px4 or args.ardupilot):
         raise ConfigError("export: nothing to write; give --px4 FILE and/or --ardupilot FILE")
+    if not 1 <= args.vehicle_id <= 255:
+        raise ConfigError(f"--vehicle-id {args.vehicle_id}: a MAVLink system id is 1..255")
     cal = load_calibration(args.calibration)
     where = str(args.calibration)
+    args.instance = _instance(args, cal)
     device = _device_id(args, cal) if args.px4 else 0
     fit_runs = _of_device(cal, load_inputs(args), "RUNS") if args.runs else provenance_runs(
         cal, where, spec_from_args(with_recorded_options(args, cal.provenance.get(
@@ -171,7 +190,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     written: dict[str, Any] = {}
     if args.px4:
         params = px4_params(cubic, instance=args.instance, device_id=device)
-        _write(args.px4, px4_params_file(params))
+        _write(args.px4, px4_params_file(params, vehicle_id=args.vehicle_id))
         written["px4"] = {"file": args.px4, "params": {n: v for n, v, _ in params}}
     if args.ardupilot:
         ap = ardupilot_params(cubic, imu=args.instance + 1)
@@ -182,6 +201,7 @@ def cmd_export(args: argparse.Namespace) -> int:
                      "t_max_c": cubic.t_max_c,
                      "coefficients_rad_s": {a: list(c) for a, c in
                                             cubic.coefficients_rad_s.items()}},
+           "instance": args.instance,
            "fit_runs": [r.source for r in fit_runs],
            "validation": {"runs": [r.source for r in valid], "in_sample": in_sample,
                           "rest": args.rest, "axes": errors}, **written}
@@ -228,8 +248,13 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     e.add_argument("--px4", metavar="FILE", help="write a QGroundControl .params file")
     e.add_argument("--ardupilot", metavar="FILE", help="write a Mission Planner/MAVProxy "
                    ".param file")
-    e.add_argument("--instance", type=int, default=0,
-                   help="gyro instance: TC_G<i> (PX4), INS_TCAL<i+1> (ArduPilot) (default 0)")
+    e.add_argument("--instance", type=int, default=None,
+                   help="gyro instance: TC_G<i> (PX4), INS_TCAL<i+1> (ArduPilot) (default: "
+                   "the IMU instance the calibration recorded, else 0; another one is "
+                   "refused)")
+    e.add_argument("--vehicle-id", type=int, default=1,
+                   help="MAVLink system id written in the QGroundControl .params file's "
+                   "first column (default 1; QGC loads a file only onto that vehicle)")
     e.add_argument("--device-id", help="PX4 device id of the gyro, TC_G<i>_ID (default: "
                    "the calibration's provenance device_id when it is an integer)")
     e.add_argument("--validate", nargs="+", metavar="RUN", help="runs to score both forms "

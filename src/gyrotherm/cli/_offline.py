@@ -100,8 +100,10 @@ def cmd_fit(args: argparse.Namespace) -> int:
             raise ConfigError(f"--effects fits one device: these runs hold {len(groups)} "
                               f"({', '.join(repr(g) for g in groups)}); fit each apart")
         return _fit_effects(args, est, feats, names, next(iter(gates.values())))
+    instances = _instances(runs)
     written = [_fit_device(args, est, group, device, paths[device], gates[device],
-                           several=len(groups) > 1) for device, group in groups.items()]
+                           several=len(groups) > 1, instance=instances.get(device))
+               for device, group in groups.items()]
     if args.json:
         conv.emit_json({"rest": {"mode": args.rest, "runs": [r.to_dict() for r in reports]},
                         "calibrations": written,
@@ -115,15 +117,30 @@ _SINGLE_KEYS = ("calibration", "model", "method", "coefficients_physical", "per_
 """With one device, ``--json`` also has its calibration's keys at the top level."""
 
 
+def _instances(runs: list[Run]) -> dict[str, int]:
+    """Per device id, the instance its log gives it (PX4 uORB instance, ArduPilot IMU
+    number from 0, a CSV's device order) when every run of the device agrees."""
+    seen: dict[str, set[str]] = {}
+    for r in runs:
+        seen.setdefault(r.metadata.get("device_id", ""), set()).add(
+            r.metadata.get("instance", ""))
+    return {d: int(next(iter(v))) for d, v in seen.items()
+            if len(v) == 1 and next(iter(v)).isdigit()}
+
+
 def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunFeatures],
-                device: str, out: Path, gates: list[Gate], *, several: bool) -> dict[str, Any]:
+                device: str, out: Path, gates: list[Gate], *, several: bool,
+                instance: int | None = None) -> dict[str, Any]:
     """Fit, print (unless ``--json``) and save the calibration of one device, and its
-    report; what was written."""
+    report; what was written. ``instance`` (the log's number for the IMU) is recorded in
+    the provenance, where ``export`` takes its slot from."""
     if device and not args.json:
         print(f"device {device}: {len(feats)} runs")
     cal = fit(feats, args.model, estimator=est, method=args.method)
     if device:
         cal = replace(cal, provenance={**cal.provenance, "device_id": device})
+    if device and instance is not None:
+        cal = replace(cal, provenance={**cal.provenance, "instance": instance})
     if recorded_options(args):
         cal = replace(cal, provenance={**cal.provenance, "input_options": recorded_options(args)})
     cal = _fitgates.record(cal, gates)
