@@ -104,9 +104,11 @@ fn parse_args() -> Result<Args, String> {
         }
     }
     if a.zenoh_config.is_some() && !a.connect.is_empty() {
-        return Err("--connect and --zenoh-config exclude each other: put the endpoints \
+        return Err(
+            "--connect and --zenoh-config exclude each other: put the endpoints \
                     in the file"
-            .into());
+                .into(),
+        );
     }
     if a.connect.is_empty() && a.zenoh_config.is_none() {
         a.connect
@@ -194,7 +196,10 @@ fn main() -> ExitCode {
                 Value::Null
             }
         };
-        println!("{}", json!({"event": "ready", "calibration_id": calibration_id}));
+        println!(
+            "{}",
+            json!({"event": "ready", "calibration_id": calibration_id})
+        );
     }
 
     // ---- the servo loop itself ------------------------------------------------

@@ -115,11 +115,9 @@ pub fn zenoh_error_text(error: &dyn fmt::Display) -> String {
         let after = &rest[i + 4..];
         let token_end = after.find(char::is_whitespace).unwrap_or(after.len());
         let token = after[..token_end].trim_end_matches('.');
-        let is_location = token
-            .rsplit_once(".rs:")
-            .is_some_and(|(_, line)| {
-                !line.is_empty() && line.chars().all(|c| c.is_ascii_digit() || c == ':')
-            });
+        let is_location = token.rsplit_once(".rs:").is_some_and(|(_, line)| {
+            !line.is_empty() && line.chars().all(|c| c.is_ascii_digit() || c == ':')
+        });
         if is_location {
             out.push_str(&rest[..i]);
             rest = &after[token_end..];
@@ -163,7 +161,10 @@ fn plain_json5_message(text: &str) -> String {
     let tail = &body[end..];
     let number_after = |key: &str| -> Option<String> {
         let at = tail.find(key)? + key.len();
-        let digits: String = tail[at..].chars().take_while(char::is_ascii_digit).collect();
+        let digits: String = tail[at..]
+            .chars()
+            .take_while(char::is_ascii_digit)
+            .collect();
         (!digits.is_empty()).then_some(digits)
     };
     let (located, close) = if tail.starts_with(", location: Some(Location {") {
@@ -186,15 +187,39 @@ fn plain_json5_message(text: &str) -> String {
     }
 }
 
+/// The zenoh links compiled in (Cargo.toml features `transport_tcp`, `transport_tls`).
+const LINKS: [&str; 2] = ["tcp", "tls"];
+
+/// The double-quoted strings of a JSON text (zenoh's `get_json` of an endpoint list:
+/// endpoints and, for a mode-dependent list, mode names).
+fn quoted(json: &str) -> impl Iterator<Item = &str> {
+    json.split('"').skip(1).step_by(2)
+}
+
 /// A Zenoh configuration file (JSON5) loaded unchanged, as the Python
 /// `session_config(config_file=...)`: zenoh checks its keys and values; a
 /// `transport/auth/usrpwd/password` still equal to [`PLACEHOLDER_PASSWORD`] is
-/// refused. Errors name the file.
+/// refused, and so is an endpoint of a link this crate does not compile (only `tcp/`
+/// and `tls/`; zenoh would say "Unable to connect"). Errors name the file.
 pub fn session_config_file(config_file: impl AsRef<Path>) -> Result<Config, Error> {
     let path = config_file.as_ref();
     let source = format!("zenoh config file {:?}", path.display().to_string());
     let config = Config::from_file(path)
         .map_err(|e| Error::Config(format!("{source}: {}", zenoh_error_text(&e))))?;
+    for key in ["connect/endpoints", "listen/endpoints"] {
+        let endpoints = config.get_json(key).unwrap_or_default();
+        let other_link = quoted(&endpoints).find(|e| {
+            e.split_once('/')
+                .is_some_and(|(proto, _)| !LINKS.contains(&proto))
+        });
+        if let Some(endpoint) = other_link {
+            return Err(Error::Config(format!(
+                "{source}: {key} {endpoint:?}: this build of gyrotherm-client has the {} \
+                 links only (zenoh features in clients/rust/Cargo.toml)",
+                LINKS.join(" and ")
+            )));
+        }
+    }
     if let Ok(password) = config.get_json("transport/auth/usrpwd/password") {
         if password == format!("{PLACEHOLDER_PASSWORD:?}") {
             return Err(Error::Config(format!(
@@ -391,7 +416,13 @@ impl Subscriber {
     ) -> Result<Self, Error> {
         check_args(vehicle, sensor, queue_size)?;
         let config = session_config(connect)?;
-        Self::open(vehicle, sensor, config, queue_size, &format!("connect {connect:?}"))
+        Self::open(
+            vehicle,
+            sensor,
+            config,
+            queue_size,
+            &format!("connect {connect:?}"),
+        )
     }
 
     /// Open a session from a Zenoh configuration file (JSON5, loaded unchanged by
@@ -469,7 +500,9 @@ impl Subscriber {
             .declare_subscriber(all.clone())
             .callback(move |sample| on_sample(&cb_shared, &cb_keys, &sample))
             .wait()
-            .map_err(|e| Error::Zenoh(format!("zenoh subscribe {all}: {}", zenoh_error_text(&e))))?;
+            .map_err(|e| {
+                Error::Zenoh(format!("zenoh subscribe {all}: {}", zenoh_error_text(&e)))
+            })?;
         Ok(Self {
             keys,
             shared,
@@ -637,7 +670,10 @@ mod tests {
     #[test]
     fn rust_locations_are_stripped_from_zenoh_errors() {
         let e = "Unable to connect to any of [tcp/127.0.0.1:1]! at /root/.cargo/registry/src/x/zenoh-1.10.2/src/net/runtime/orchestrator.rs:1013.";
-        assert_eq!(zenoh_error_text(&e), "Unable to connect to any of [tcp/127.0.0.1:1]!");
+        assert_eq!(
+            zenoh_error_text(&e),
+            "Unable to connect to any of [tcp/127.0.0.1:1]!"
+        );
         let e = "bad value at line 3 at /a/b/config.rs:86:5. - Caused by x at /c/d.rs:2.";
         assert_eq!(zenoh_error_text(&e), "bad value at line 3 - Caused by x");
         assert_eq!(zenoh_error_text(&"look at me."), "look at me");
@@ -656,20 +692,56 @@ mod tests {
             transport: { auth: { usrpwd: { user: "u", password: "REPLACE-WITH-A-SECRET" } } } }"#;
         let path = temp_file("placeholder.json5", text);
         let e = session_config_file(&path).unwrap_err().to_string();
-        assert!(e.contains("placeholder.json5") && e.contains("still the shipped placeholder"), "{e}");
+        assert!(
+            e.contains("placeholder.json5") && e.contains("still the shipped placeholder"),
+            "{e}"
+        );
         let path = temp_file("real.json5", &text.replace(PLACEHOLDER_PASSWORD, "s3cret"));
         let config = session_config_file(&path).unwrap();
         assert_eq!(config.get_json("mode").unwrap(), "\"client\"");
-        assert_eq!(config.get_json("transport/auth/usrpwd/user").unwrap(), "\"u\"");
+        assert_eq!(
+            config.get_json("transport/auth/usrpwd/user").unwrap(),
+            "\"u\""
+        );
         // zenoh's own schema check, the file named, no Rust source location
         let path = temp_file("bad.json5", r#"{ mode: "server" }"#);
         let e = session_config_file(&path).unwrap_err().to_string();
-        assert!(e.starts_with("zenoh config file ") && e.contains("bad.json5"), "{e}");
-        assert!(e.contains("unknown variant `server`") && e.ends_with("(line 1, column 9)"), "{e}");
+        assert!(
+            e.starts_with("zenoh config file ") && e.contains("bad.json5"),
+            "{e}"
+        );
+        assert!(
+            e.contains("unknown variant `server`") && e.ends_with("(line 1, column 9)"),
+            "{e}"
+        );
         assert!(!e.contains(".rs:") && !e.contains("Message {"), "{e}");
-        let e = session_config_file("/nonexistent/z.json5").unwrap_err().to_string();
+        for (key, endpoints) in [
+            ("connect", r#"["quic/127.0.0.1:7447"]"#),
+            ("listen", r#"{ router: [], peer: ["udp/127.0.0.1:0"] }"#),
+        ] {
+            let path = temp_file(
+                "link.json5",
+                &format!("{{ {key}: {{ endpoints: {endpoints} }} }}"),
+            );
+            let e = session_config_file(&path).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("{key}/endpoints")) && e.contains("tcp and tls links only"),
+                "{e}"
+            );
+        }
+        let path = temp_file(
+            "links.json5",
+            r#"{ connect: { endpoints: ["tcp/127.0.0.1:1", "tls/localhost:2"] } }"#,
+        );
+        assert!(session_config_file(&path).is_ok());
+        let e = session_config_file("/nonexistent/z.json5")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("/nonexistent/z.json5"), "{e}");
-        let e = Subscriber::from_config_file("a/b", "imu0", &path, 8).err().unwrap().to_string();
+        let e = Subscriber::from_config_file("a/b", "imu0", &path, 8)
+            .err()
+            .unwrap()
+            .to_string();
         assert!(e.starts_with("vehicle name"), "{e}");
     }
 

@@ -22,7 +22,7 @@ fn load() -> J {
 }
 
 fn hex(s: &str) -> Vec<u8> {
-    assert!(s.len() % 2 == 0, "odd hex length");
+    assert!(s.len().is_multiple_of(2), "odd hex length");
     (0..s.len())
         .step_by(2)
         .map(|i| u8::from_str_radix(&s[i..i + 2], 16).expect("hex"))
@@ -169,8 +169,16 @@ fn check_zero(got: &Option<ZeroState>, want: &J, at: &str) {
     let z = got
         .as_ref()
         .unwrap_or_else(|| panic!("{at}: no zero decoded, vector says {want}"));
-    assert_eq!(Some(u64::from(z.status)), want["status"].as_u64(), "{at}.status");
-    eq_f64x3(&z.offset_dps, &want["offset_dps"], &format!("{at}.offset_dps"));
+    assert_eq!(
+        Some(u64::from(z.status)),
+        want["status"].as_u64(),
+        "{at}.status"
+    );
+    eq_f64x3(
+        &z.offset_dps,
+        &want["offset_dps"],
+        &format!("{at}.offset_dps"),
+    );
 }
 
 fn check_health(h: &HealthMessage, want_fields: &[(String, J)], at: &str) {
@@ -277,7 +285,11 @@ fn every_vector_decodes_to_its_fields() {
                     names.insert(f.clone());
                 }
                 if !names.contains("zero") {
-                    assert!(m.zero.is_none(), "{name}: no zero element, decoded {:?}", m.zero);
+                    assert!(
+                        m.zero.is_none(),
+                        "{name}: no zero element, decoded {:?}",
+                        m.zero
+                    );
                 }
                 if !names.contains("effects") {
                     assert!(
@@ -433,6 +445,9 @@ fn flag_names_and_bits_match_the_vectors_file() {
         .collect();
     assert_eq!(got, want);
     for (name, bit) in &want {
-        assert_eq!(gyrotherm_client::decode::flags::names(*bit), vec![name.clone()]);
+        assert_eq!(
+            gyrotherm_client::decode::flags::names(*bit),
+            vec![name.clone()]
+        );
     }
 }
