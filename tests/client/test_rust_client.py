@@ -99,8 +99,8 @@ def _declared_rust_version() -> str:
 def test_rust_crate_builds_with_its_declared_minimum_rust_version() -> None:
     """``rust-version`` in Cargo.toml is checked, not just declared: that toolchain builds
     every target (lib, example, tests) with the locked dependencies. Skips, naming the
-    install command, when the toolchain is not installed (rustup does not install it by
-    itself here: RUSTUP_AUTO_INSTALL=0 in CI)."""
+    install command, when the toolchain is not installed (the test sets
+    RUSTUP_AUTO_INSTALL=0: rustup never downloads it by itself)."""
     cargo = _cargo()
     msrv = _declared_rust_version()
     version = f"{msrv}.0" if msrv.count(".") == 1 else msrv
@@ -256,7 +256,8 @@ def test_readme_rust_servo_loop_against_the_daemon(
     assert stats["latency_count"] == n
     assert 0 <= stats["latency_p50_ms"] <= stats["latency_p99_ms"] <= stats["latency_max_ms"]
     assert stats["latency_max_ms"] < TIMEOUT_S * 1e3
-    print(f"rust: {n} samples, gaps 0, latency p50 {stats['latency_p50_ms']:.2f} ms, "
+    print(f"rust: {n} samples ({done['commands']} commands, {done['skipped_by_flag']} skipped), "
+          f"gaps 0, latency p50 {stats['latency_p50_ms']:.2f} ms, "
           f"p99 {stats['latency_p99_ms']:.2f} ms; python: p50 "
           f"{py_stats.latency.p50_s * 1e3:.2f} ms, p99 {py_stats.latency.p99_s * 1e3:.2f} ms")
 
@@ -554,6 +555,8 @@ def test_rust_servo_loop_through_a_secured_router(
     assert [g["seq"] for g in got] == list(range(got[0]["seq"], got[0]["seq"] + n))
     assert done["samples"] == n and done["rate"]["gaps"] == 0
     assert done["commands"] == sum(not m.flags for m in rates) > 0
+    print(f"{name} ({kind}): {n} samples, {done['commands']} commands, skipped "
+          f"{done['skipped_by_flag']}, p99 {done['rate']['latency_p99_ms']:.2f} ms")
 
 
 #: the example's stderr when zenoh cannot open the session of a config file (%s: the file)
