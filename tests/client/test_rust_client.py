@@ -528,10 +528,10 @@ def test_rust_servo_loop_through_a_secured_router(
         daemon_file, viewer_file = _client_files(name, tmp_path, pki, endpoint)
         channel = stack.enter_context(_daemon_via(daemon_file, calibration, tmp_path))
         rates: list[RateMessage] = []
-        sub = stack.enter_context(Subscriber(
-            "testcar", "imu0", session=open_session(config_file=viewer_file),
-            on_rate=rates.append))  # fmt: skip
-        stack.callback(sub.session.close)
+        session = open_session(config_file=viewer_file)  # the viewer's file, in Python
+        stack.callback(session.close)
+        sub = stack.enter_context(Subscriber("testcar", "imu0", session=session,
+                                             on_rate=rates.append))  # fmt: skip
         assert sub.wait_for(lambda s: s.health.received >= 1, timeout_s=TIMEOUT_S)
         calibration_id = sub.query_calibration(timeout_s=TIMEOUT_S).calibration_id
         bus = stack.enter_context(open_bus(interface="virtual", channel=channel))
