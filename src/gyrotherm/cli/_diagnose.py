@@ -52,6 +52,16 @@ def candump_notes(runs: Sequence[Run]) -> list[str]:
     return notes
 
 
+def _one_imu(runs: Sequence[Run]) -> None:
+    """The diagnosis models one gyro: runs of several IMUs or vehicles are refused."""
+    for key, what in (("device_id", "IMUs"), ("vehicle_id", "vehicles")):
+        named = {str(r.metadata.get(key, "") or "") for r in runs} - {""}
+        if len(named) > 1:
+            raise ConfigError(f"diagnose models one gyro; these runs are of {len(named)} "
+                              f"{what} ({', '.join(sorted(named))}): give one's runs "
+                              "(e.g. `gyrotherm import` splits a log per IMU)")
+
+
 def cmd_diagnose(args: argparse.Namespace) -> int:
     from gyrotherm.analysis import diagnose, write_report  # matplotlib, scipy: here only
 
@@ -61,6 +71,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     conv.check_runs(args.runs, command="diagnose")
     conv.check_json_target(args.json)
     runs = load(args.runs, quiet=quiet, spec=spec_from_args(args))
+    _one_imu(runs)
     _fitrest.refuse_motion(_fitrest.rest_reports(args, runs), command="diagnose")
     start = time.perf_counter()
 

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from gyrotherm._errors import CalibrationError, ConfigError
-from gyrotherm.cli import _fitrest
+from gyrotherm.cli import _fitrest, _identity
 from gyrotherm.cli._inputs import (
     add_input_options,
     load_inputs,
@@ -79,16 +79,9 @@ def provenance_runs(cal: Calibration, where: str, spec: InputSpec | None = None)
 
 
 def _of_device(cal: Calibration, runs: list[Run], what: str) -> list[Run]:
-    """The runs of the calibration's device (provenance ``device_id``), from logs that
-    may hold several IMUs; runs that name no device are kept."""
-    device = cal.provenance.get("device_id")
-    if device is None:
-        return runs
-    mine = [r for r in runs if r.metadata.get("device_id", device) == device]
-    if not mine:
-        raise CalibrationError(f"{what}: no run of device {device!r} (found devices "
-                               f"{sorted({r.metadata.get('device_id', '') for r in runs})})")
-    return mine
+    """The runs of the calibration's IMU (device, sensor id and vehicle where recorded:
+    :func:`gyrotherm.cli._identity.matching_runs`), from logs that may hold several."""
+    return _identity.matching_runs(cal.provenance, runs, what=what)
 
 
 def _rest_rows(run: Run, mode: str, config: RestConfig | None) -> np.ndarray:

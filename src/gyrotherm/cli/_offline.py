@@ -11,7 +11,7 @@ from typing import Any
 
 from gyrotherm._errors import ConfigError
 from gyrotherm.cli import _conventions as conv
-from gyrotherm.cli import _fitgates, _fitrest, _paper
+from gyrotherm.cli import _fitgates, _fitrest, _identity, _paper
 from gyrotherm.cli._common import (
     add_estimator_options,
     estimator_from_args,
@@ -84,6 +84,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     conv.check_runs(args.runs, command="fit")
     conv.check_json_target(args.json)
     runs = load_inputs(args)
+    _identity.check_vehicles(runs, pool=args.pool_vehicles)
     reports = _fitrest.rest_reports(args, runs)
     if names:
         _fitrest.refuse_motion(reports, command="fit --effects")
@@ -101,8 +102,12 @@ def cmd_fit(args: argparse.Namespace) -> int:
                               f"({', '.join(repr(g) for g in groups)}); fit each apart")
         return _fit_effects(args, est, feats, names, next(iter(gates.values())))
     instances = _instances(runs)
+    ids = {device: _identity.recorded([r for r in runs
+                                       if r.metadata.get("device_id", "") == device])
+           for device in groups}
     written = [_fit_device(args, est, group, device, paths[device], gates[device],
-                           several=len(groups) > 1, instance=instances.get(device))
+                           several=len(groups) > 1, instance=instances.get(device),
+                           ids=ids[device])
                for device, group in groups.items()]
     if args.json:
         conv.emit_json({"rest": {"mode": args.rest, "runs": [r.to_dict() for r in reports]},
@@ -130,7 +135,8 @@ def _instances(runs: list[Run]) -> dict[str, int]:
 
 def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunFeatures],
                 device: str, out: Path, gates: list[Gate], *, several: bool,
-                instance: int | None = None) -> dict[str, Any]:
+                instance: int | None = None,
+                ids: dict[str, str] | None = None) -> dict[str, Any]:
     """Fit, print (unless ``--json``) and save the calibration of one device, and its
     report; what was written. ``instance`` (the log's number for the IMU) is recorded in
     the provenance, where ``export`` takes its slot from."""
@@ -141,6 +147,8 @@ def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunF
         cal = replace(cal, provenance={**cal.provenance, "device_id": device})
     if device and instance is not None:
         cal = replace(cal, provenance={**cal.provenance, "instance": instance})
+    if ids:  # the IMU's sensor id and the vehicle, where the logs say
+        cal = replace(cal, provenance={**cal.provenance, **ids})
     if recorded_options(args):
         cal = replace(cal, provenance={**cal.provenance, "input_options": recorded_options(args)})
     cal = _fitgates.record(cal, gates)
@@ -250,7 +258,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     conv.check_calibration_first(args.calibration, args.runs, command="evaluate")
     conv.check_json_target(args.json)
     cal = load_calibration(args.calibration)
-    runs = load_inputs(args)
+    runs = _identity.matching_runs(cal.provenance, load_inputs(args), what=str(args.calibration))
     reports = _fitrest.rest_reports(args, runs)
     feats = _fitrest.mask_motion(_features_of(runs, cal.estimator, quiet=args.quiet), reports)
     with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
@@ -323,6 +331,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "never over a run file)")
     f.add_argument("--no-validation", action="store_true",
                    help="skip the leave-one-run-out validation")
+    f.add_argument("--pool-vehicles", action="store_true",
+                   help="fit one device name's runs together even when the logs name "
+                   "several vehicles (default: refused; one calibration is one IMU)")
     f.add_argument("--effects", metavar="A,B",
                    help="also fit these effects with the paper model (thermal_lag, "
                    "hysteresis, warmup, cubic, gradient_quadratic, drift), per axis, time "

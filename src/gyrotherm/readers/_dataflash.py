@@ -10,6 +10,13 @@ One run per IMU instance, from the ``IMU`` message (ArduPilot
 * ``GyrX/Y/Z`` (rad/s) → ``rates_dps`` (× 180/π);
 * ``T`` (°C) → ``temperature_c``;
 * ``AccX/Y/Z`` (m/s²) → ``Run.extra`` ``accel_<axis>_mps2``;
+* the IMU's identity: metadata ``sensor_id`` = ``INS_GYR<n>_ID`` from the log's ``PARM``
+  messages (``INS_GYR_ID`` for instance 0, ``INS_GYR2_ID`` … ; the device id of its
+  bus, address and type, the same on every board of a model), ``vehicle_id`` =
+  ``ardupilot-uid:<96-bit MCU id>`` from the boot message ChibiOS boards log
+  (``MSG`` "omnibusf4pro 0034005A 4E4E5005 20363553": board name and unique id), ``board``
+  the board name; empty when the log has none (``SYSID_THISMAV`` is not used: it is 1
+  on most vehicles);
 * the arming state → ``Run.extra["armed"]`` (1/0 per row; metadata ``armed`` names the
   source or ``none``): from ``ARM`` messages (``ArmState``, 1 armed) or, without them,
   ``EV`` events (``Id`` 10 ARMED, 11 DISARMED, ArduPilot's ``LogEvent``), each held until
@@ -134,12 +141,14 @@ def read_dataflash(path: str | os.PathLike[str]) -> list[Run]:
     log = _open(p)
     try:
         armed = arming_state(p, log)
+        ident = identity(p, log)  # before _parts, which frees pymavlink's index
         parts, cut = _parts(p, log)
     finally:
         log.close()  # the mmap and the file handle
     sha = sha256_of(p)
     return each_instance(p, [(f"message {name!r} instance {inst}",
-                              partial(_run, p, inst, name, cols, cut=cut, sha=sha, armed=armed))
+                              partial(_run, p, inst, name, cols, cut=cut, sha=sha, armed=armed,
+                                      ident=ident))
                              for inst, name, cols in sorted(parts, key=lambda x: x[0])])
 
 
@@ -169,8 +178,46 @@ def arming_state(p: Path, log: Any) -> Arming | None:
     return None
 
 
+_UID = re.compile(r"^(?P<board>\S+) (?P<uid>[0-9A-F]{8} [0-9A-F]{8} [0-9A-F]{8})$")
+
+
+def _records(path: Path, log: Any, name: str, fields: list[str]) -> list[tuple[Any, ...]]:
+    """The ``fields`` of every ``name`` message (strings decoded), in log order."""
+    mtype = log.name_to_id.get(name)
+    if mtype is None or not len(log.offsets[mtype]):
+        return []
+    fmt = log.formats[mtype]
+    columns = list(fmt.columns)
+    if not all(f in columns for f in fields):
+        return []
+    dtype = _dtype(path, name, fmt.msg_struct)
+    if dtype.itemsize != int(fmt.len) - 3:
+        return []
+    offs = np.asarray(log.offsets[mtype], dtype=np.int64)
+    offs = offs[offs + int(fmt.len) <= int(log.data_len)]
+    buf = np.frombuffer(log.data_map, dtype=np.uint8)
+    rec = buf[offs[:, None] + np.arange(3, int(fmt.len), dtype=np.int64)].view(dtype)[:, 0]
+    cols = [rec[f"f{columns.index(f)}"] for f in fields]
+    return [tuple(v.split(b"\0", 1)[0].decode("ascii", "replace") if isinstance(v, bytes)
+                  else float(v) for v in row) for row in zip(*cols, strict=True)]
+
+
+def identity(p: Path, log: Any) -> dict[str, str]:
+    """``INS_GYR*_ID`` parameters (the last value logged) and the board's unique id."""
+    params = {name: value for name, value in _records(p, log, "PARM", ["Name", "Value"])}
+    out = {f"sensor_id:{k}": str(int(v)) for k, v in params.items()
+           if re.fullmatch(r"INS_GYR\d?_ID", k) and v}
+    for (text,) in _records(p, log, "MSG", ["Message"]):
+        m = _UID.match(text.strip())
+        if m:
+            out["vehicle_id"] = "ardupilot-uid:" + m["uid"].replace(" ", "")
+            out["board"] = m["board"]
+            break
+    return out
+
+
 def _run(p: Path, inst: int, name: str, cols: dict[str, FloatArray], *, cut: int,
-         sha: str, armed: Arming | None) -> Run:
+         sha: str, armed: Arming | None, ident: dict[str, str] | None = None) -> Run:
     time_col = "TimeUS" if "TimeUS" in cols else "TimeMS"
     temp = cols["T"] if "T" in cols else cols["Temp"]
     scale = 1e-3 if time_col == "TimeMS" else S_PER_US
@@ -185,6 +232,10 @@ def _run(p: Path, inst: int, name: str, cols: dict[str, FloatArray], *, cut: int
         "unit_accel": "m/s2",
         "messages_cut_at_end": str(cut),
         "armed": armed[2] if armed is not None else "none",
+        "vehicle_id": (ident or {}).get("vehicle_id", ""),
+        "board": (ident or {}).get("board", ""),
+        "sensor_id": (ident or {}).get(
+            f"sensor_id:INS_GYR{'' if inst == 0 else inst + 1}_ID", ""),
     }
     t = cols[time_col] * scale
     return make_run(

@@ -8,8 +8,10 @@ order. Fields used (PX4 ``msg/SensorGyro.msg``):
 * ``x``, ``y``, ``z`` (rad/s) → ``rates_dps`` (× 180/π);
 * ``temperature`` (°C) → ``temperature_c``; a gyro whose temperature is NaN
   throughout is an error (PX4 logs NaN for sensors without one);
-* ``device_id`` → metadata ``device_id`` as decimal, with the decoded
-  ``DeviceStructure`` (bus type, bus, address, devtype) in ``device``.
+* ``device_id`` → metadata ``device_id`` (and ``sensor_id``) as decimal, with the
+  decoded ``DeviceStructure`` (bus type, bus, address, devtype) in ``device``;
+* the vehicle: metadata ``vehicle_id`` = ``px4-uuid:<sys_uuid>`` (the flight controller's
+  unique id from the log's info messages; empty without one), ``board`` = ``ver_hw``.
 
 ``sensor_accel`` with the same instance, when logged, is interpolated onto the
 gyro's time stamps (linear, no extrapolation) into ``Run.extra``
@@ -116,9 +118,13 @@ def read_ulog(path: str | os.PathLike[str]) -> list[Run]:
     corrupt = bool(getattr(ulog, "file_corruption", False))
     cut_bytes = bytes_cut_at_end(p)
     armed = arming_state(ulog)
+    info = getattr(ulog, "msg_info_dict", {}) or {}
+    uuid = str(info.get("sys_uuid", "") or "")
+    vehicle = {"vehicle_id": f"px4-uuid:{uuid}" if uuid else "",
+               "board": str(info.get("ver_hw", "") or "")}
     return each_instance(p, [(f"topic {GYRO_TOPIC!r} instance {g.multi_id}",
                               partial(_run, p, g, accels.get(g.multi_id), sha, corrupt,
-                                      cut_bytes, armed))
+                                      cut_bytes, armed, vehicle))
                              for g in gyros])
 
 
@@ -161,7 +167,8 @@ def _time_s(data: dict[str, Any]) -> tuple[FloatArray, str]:
 
 
 def _run(path: Path, gyro: Any, accel: Any, sha: str, corrupt: bool, cut_bytes: int,
-         armed: tuple[FloatArray, FloatArray, str] | None) -> Run:
+         armed: tuple[FloatArray, FloatArray, str] | None,
+         vehicle: dict[str, str] | None = None) -> Run:
     where = f"topic {GYRO_TOPIC!r} instance {gyro.multi_id}"
     data: dict[str, Any] = gyro.data
     need = ("x", "y", "z", "temperature", "device_id")
@@ -183,6 +190,8 @@ def _run(path: Path, gyro: Any, accel: Any, sha: str, corrupt: bool, cut_bytes: 
     meta = {
         "format": "px4-ulog",
         "device_id": str(device_id),
+        "sensor_id": str(device_id),
+        **(vehicle or {"vehicle_id": "", "board": ""}),
         "device": decode_device_id(device_id),
         "instance": str(gyro.multi_id),
         "topic": GYRO_TOPIC,
