@@ -122,3 +122,28 @@ def test_fit_refuses_two_vehicles_unless_asked(tmp_path: Path,
     assert "--pool-vehicles" in err
     main(["fit", str(a), str(b), "--out", str(tmp_path / "cals"), "--pool-vehicles"])
     assert "is on 2 vehicles" not in capsys.readouterr().err  # pooled (6 rows: gated later)
+
+
+@pytest.mark.parametrize(("param", "value", "message"), [
+    (b"AHRS_ORIENTATION", 2.0, r"AHRS_ORIENTATION = 2: ArduPilot logs the IMU rates in the "
+     r"body frame"),
+    (b"INS_TCAL1_ENABLE", 1.0, r"INS_TCAL1_ENABLE = 1: the logged rates are already "
+     r"corrected"),
+])
+def test_rotated_or_corrected_ardupilot_rates_are_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], param: bytes, value: float,
+        message: str) -> None:
+    import re
+
+    path = _log(tmp_path / "a.bin", UID)
+    extra = dk.log([PARM], [(PARM, [900, param, value])])
+    # the same log with one more PARM: formats first, then the messages of both
+    body = path.read_bytes()
+    path.write_bytes(body + extra[len(dk.log([PARM], [])):])
+    runs = read_dataflash(path)
+    key = "ahrs_orientation" if param == b"AHRS_ORIENTATION" else "tcal_enable"
+    assert runs[0].metadata[key] == str(int(value))
+    assert main(["fit", str(path), "--out", str(tmp_path / "c.json"), "--force"]) == 2
+    assert re.search(message, capsys.readouterr().err)
+    ok = read_dataflash(_log(tmp_path / "b.bin", UID))
+    assert (ok[0].metadata["ahrs_orientation"], ok[0].metadata["tcal_enable"]) == ("", "")

@@ -174,6 +174,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     fit_runs = _of_device(cal, load_inputs(args), "RUNS") if args.runs else provenance_runs(
         cal, where, spec_from_args(with_recorded_options(args, cal.provenance.get(
             "input_options"))))
+    _identity.check_autopilot_frames(fit_runs)
     rest = _fitrest.rest_config(args)
     cubic = fit_cubic(fit_runs, args.rest, rest)
     in_sample = not args.validate

@@ -48,6 +48,30 @@ def check_vehicles(runs: Sequence[Run], *, pool: bool) -> None:
                 "give --pool-vehicles to pool them on purpose")
 
 
+def check_autopilot_frames(runs: Sequence[Run]) -> None:
+    """ConfigError for ArduPilot runs whose rates are not the raw sensor frame: logged with a
+    board rotation (``AHRS_ORIENTATION`` ≠ 0: the ``IMU`` message is in the body frame, so
+    coefficients would land on the wrong axes of the sensor the export writes for) or
+    already corrected (``INS_TCAL<n>_ENABLE`` = 1: a fit would fit the residuals of the
+    autopilot's own cubic). ArduPilot's ``Tools/scripts/tempcal_IMU.py`` undoes both;
+    gyrotherm does not yet, so it refuses, naming the parameter and how to log instead."""
+    for r in runs:
+        orientation = _id(r.metadata, "ahrs_orientation")
+        if orientation not in ("", "0"):
+            raise ConfigError(
+                f"{r.source}: {r.name}: AHRS_ORIENTATION = {orientation}: ArduPilot logs the "
+                "IMU rates in the body frame, rotated from the sensor's; gyrotherm does not "
+                "undo the rotation yet, so the coefficients would be on the wrong axes. Log "
+                "the calibration with AHRS_ORIENTATION = 0 (the board's own frame), or fit "
+                "with ArduPilot's Tools/scripts/tempcal_IMU.py")
+        if _id(r.metadata, "tcal_enable") == "1":
+            n = int(_id(r.metadata, "instance") or 0) + 1
+            raise ConfigError(
+                f"{r.source}: {r.name}: INS_TCAL{n}_ENABLE = 1: the logged rates are already "
+                "corrected by the autopilot's temperature calibration, and a fit would fit "
+                f"what it leaves. Log the calibration run with INS_TCAL{n}_ENABLE = 0")
+
+
 def recorded(runs: Sequence[Run]) -> dict[str, str]:
     """``sensor_id`` and ``vehicle_id`` the runs agree on (for the provenance)."""
     out = {}

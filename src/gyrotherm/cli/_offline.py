@@ -85,6 +85,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     conv.check_json_target(args.json)
     runs = load_inputs(args)
     _identity.check_vehicles(runs, pool=args.pool_vehicles)
+    _identity.check_autopilot_frames(runs)
     reports = _fitrest.rest_reports(args, runs)
     if names:
         _fitrest.refuse_motion(reports, command="fit --effects")

@@ -17,6 +17,12 @@ One run per IMU instance, from the ``IMU`` message (ArduPilot
   (``MSG`` "omnibusf4pro 0034005A 4E4E5005 20363553": board name and unique id), ``board``
   the board name; empty when the log has none (``SYSID_THISMAV`` is not used: it is 1
   on most vehicles);
+* the frame and correction of the logged rates: metadata ``ahrs_orientation``
+  (``AHRS_ORIENTATION``: the ``IMU`` message is in the body frame, rotated from the
+  sensor's by the board orientation) and ``tcal_enable`` (``INS_TCAL<n>_ENABLE``: 1 means
+  the logged rates are already corrected by the autopilot's thermal calibration); empty
+  when the log does not say. ``fit`` and ``export`` refuse what they cannot undo
+  (:mod:`gyrotherm.cli._identity`);
 * the arming state → ``Run.extra["armed"]`` (1/0 per row; metadata ``armed`` names the
   source or ``none``): from ``ARM`` messages (``ArmState``, 1 armed) or, without them,
   ``EV`` events (``Id`` 10 ARMED, 11 DISARMED, ArduPilot's ``LogEvent``), each held until
@@ -202,11 +208,17 @@ def _records(path: Path, log: Any, name: str, fields: list[str]) -> list[tuple[A
                   else float(v) for v in row) for row in zip(*cols, strict=True)]
 
 
+def _int_text(value: str | None) -> str:
+    return "" if value is None else str(int(float(value)))
+
+
 def identity(p: Path, log: Any) -> dict[str, str]:
     """``INS_GYR*_ID`` parameters (the last value logged) and the board's unique id."""
     params = {name: value for name, value in _records(p, log, "PARM", ["Name", "Value"])}
     out = {f"sensor_id:{k}": str(int(v)) for k, v in params.items()
            if re.fullmatch(r"INS_GYR\d?_ID", k) and v}
+    out.update({f"param:{k}": repr(float(v)) for k, v in params.items()
+                if k == "AHRS_ORIENTATION" or re.fullmatch(r"INS_TCAL\d_ENABLE", k)})
     for (text,) in _records(p, log, "MSG", ["Message"]):
         m = _UID.match(text.strip())
         if m:
@@ -236,6 +248,8 @@ def _run(p: Path, inst: int, name: str, cols: dict[str, FloatArray], *, cut: int
         "board": (ident or {}).get("board", ""),
         "sensor_id": (ident or {}).get(
             f"sensor_id:INS_GYR{'' if inst == 0 else inst + 1}_ID", ""),
+        "ahrs_orientation": _int_text((ident or {}).get("param:AHRS_ORIENTATION")),
+        "tcal_enable": _int_text((ident or {}).get(f"param:INS_TCAL{inst + 1}_ENABLE")),
     }
     t = cols[time_col] * scale
     return make_run(
