@@ -29,6 +29,9 @@ import json
 import queue
 import re
 import shlex
+import shutil
+import subprocess
+import sys
 import threading
 import time
 import uuid
@@ -46,22 +49,29 @@ from gyrotherm.compensation import Calibration
 from gyrotherm.daemon import Daemon, parse_config
 from streamkit import free_port, run_frames
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "daemon"))
+from faultkit import Lines
+
 TIMEOUT_S = 20.0
 ROOT = Path(__file__).resolve().parents[2]
 
 
+ROUTER: dict[str, Any] = {
+    "mode": "router",
+    "connect": {"endpoints": []},
+    "scouting": {"multicast": {"enabled": False},
+                 "gossip": {"enabled": True, "multihop": False}},
+    "timestamping": {"enabled": {"router": True, "peer": True, "client": True}},
+    "routing": {"router": {"peers_failover_brokering": True},
+                "peer": {"mode": "peer_to_peer"}},
+}
+"""rmw_zenohd's DEFAULT_RMW_ZENOH_ROUTER_CONFIG.json5 (its listen endpoint aside)."""
+
+
 def router_config(port: int) -> zenoh.Config:
     """rmw_zenohd's DEFAULT_RMW_ZENOH_ROUTER_CONFIG.json5, on 127.0.0.1:``port``."""
-    return zenoh.Config.from_json5(json.dumps({
-        "mode": "router",
-        "listen": {"endpoints": [f"tcp/127.0.0.1:{port}"]},
-        "connect": {"endpoints": []},
-        "scouting": {"multicast": {"enabled": False},
-                     "gossip": {"enabled": True, "multihop": False}},
-        "timestamping": {"enabled": {"router": True, "peer": True, "client": True}},
-        "routing": {"router": {"peers_failover_brokering": True},
-                    "peer": {"mode": "peer_to_peer"}},
-    }))
+    return zenoh.Config.from_json5(json.dumps(
+        {**ROUTER, "listen": {"endpoints": [f"tcp/127.0.0.1:{port}"]}}))
 
 
 def node_config(router_port: int) -> zenoh.Config:
@@ -164,12 +174,37 @@ def readme_record_argv() -> list[str]:
     return shlex.split(line.split("#")[0])[2:]
 
 
-@pytest.fixture()
-def router() -> Iterator[int]:
+@pytest.fixture(params=["eclipse-zenoh", "zenohd"])
+def router(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[int]:
+    """The router on a free loopback port: eclipse-zenoh in router mode in this process,
+    or a ``zenohd`` process (rmw_zenohd is zenohd with rmw_zenoh's config) when on PATH."""
     port = free_port()
-    session = zenoh.open(router_config(port))
-    yield port
-    session.close()
+    if request.param == "eclipse-zenoh":
+        session = zenoh.open(router_config(port))
+        yield port
+        session.close()
+        return
+    zenohd = shutil.which("zenohd")
+    if zenohd is None:
+        pytest.skip("zenohd is not on PATH: the eclipse-zenoh variant runs the same router "
+                    "engine (install zenohd to run this one too)")
+    config = tmp_path / "rmw_zenohd.json5"
+    config.write_text(json.dumps({**ROUTER, "listen": {"endpoints": [f"tcp/127.0.0.1:{port}"]}}))
+    proc = subprocess.Popen([zenohd, "-c", str(config)], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True,
+                            env={"RUST_LOG": "info", "PATH": "/usr/bin:/bin"})
+    try:
+        assert proc.stdout is not None
+        lines = Lines(proc.stdout)  # at RUST_LOG=info zenohd logs its bound locators
+        assert lines.wait_for(re.escape(f"127.0.0.1:{port}"), TIMEOUT_S), lines.lines
+        yield port
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(10)
 
 
 @pytest.mark.parametrize("topology", ["shared_router", "separate"])
