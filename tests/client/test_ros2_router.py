@@ -2,14 +2,16 @@
 it: the node's Zenoh session has rmw_zenoh's default settings and only knows the router.
 
 The peer and router settings are rmw_zenoh's own defaults, read from its sources
-(ros2/rmw_zenoh, commit 076f2e715b54132d00a605e1c45e13401d5e7342,
-``rmw_zenoh_cpp/config/DEFAULT_RMW_ZENOH_SESSION_CONFIG.json5`` and
-``DEFAULT_RMW_ZENOH_ROUTER_CONFIG.json5``): the node is a peer that connects to the
+(ros2/rmw_zenoh ``rmw_zenoh_cpp/config/DEFAULT_RMW_ZENOH_SESSION_CONFIG.json5`` at commit
+076f2e715b54132d00a605e1c45e13401d5e7342 and ``DEFAULT_RMW_ZENOH_ROUTER_CONFIG.json5`` at
+commit bfc065f8c80cc3bc4d1963dc44ac5a472460903a): the node is a peer that connects to the
 router, listens on ``tcp/localhost:0``, has multicast scouting off and gossip on
 (multihop off, target the router, autoconnect to routers and peers, strategy
 ``greater-zid`` between peers); the router (``rmw_zenohd``) has gossip on and
 ``peers_failover_brokering`` on. Only the addresses differ: 127.0.0.1 and ephemeral
-ports, never 7447 (the machine's other tests) and never all interfaces.
+ports, never 7447 (the machine's other tests) and never all interfaces. The router runs
+as eclipse-zenoh in router mode and, when installed, as a ``zenohd`` process (rmw_zenohd
+is zenohd with that configuration).
 
 Two topologies (README, "ROS 2 live, over Zenoh"):
 
