@@ -147,3 +147,17 @@ def test_rotated_or_corrected_ardupilot_rates_are_refused(
     assert re.search(message, capsys.readouterr().err)
     ok = read_dataflash(_log(tmp_path / "b.bin", UID))
     assert (ok[0].metadata["ahrs_orientation"], ok[0].metadata["tcal_enable"]) == ("", "")
+
+
+def test_device_selects_an_imu_and_diagnose_wants_one(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = DATA / "ardupilot_two_imus.bin"
+    out = tmp_path / "imp"
+    assert main(["-q", "import", str(log), "--out", str(out), "--device", "IMU[1]"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["ardupilot_two_imus-IMU_1_.csv"]
+    assert main(["-q", "import", str(log), "--out", str(out), "--device", "IMU[7]"]) == 2
+    assert "--device IMU[7]: no such device in the inputs; they hold 'IMU[0]', 'IMU[1]'" in \
+        capsys.readouterr().err
+    assert main(["-q", "diagnose", str(log), "--rest", "all"]) == 2
+    assert "diagnose models one gyro; these runs are of 2 IMUs (IMU[0], IMU[1])" in \
+        capsys.readouterr().err

@@ -11,7 +11,7 @@ from typing import Any
 
 from gyrotherm._errors import ConfigError, RunFileError
 from gyrotherm.cli import _conventions as conv
-from gyrotherm.cli import _fitrest
+from gyrotherm.cli import _fitrest, _identity
 from gyrotherm.cli._common import load_runs
 from gyrotherm.cli._inputs import add_input_options, spec_from_args
 from gyrotherm.codecs import Run
@@ -59,7 +59,7 @@ def _one_imu(runs: Sequence[Run]) -> None:
         if len(named) > 1:
             raise ConfigError(f"diagnose models one gyro; these runs are of {len(named)} "
                               f"{what} ({', '.join(sorted(named))}): give one's runs "
-                              "(e.g. `gyrotherm import` splits a log per IMU)")
+                              "(--device ID selects an IMU)")
 
 
 def cmd_diagnose(args: argparse.Namespace) -> int:
@@ -70,7 +70,8 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         raise ConfigError(f"--margin = {args.margin!r} is outside (0, 1)")
     conv.check_runs(args.runs, command="diagnose")
     conv.check_json_target(args.json)
-    runs = load(args.runs, quiet=quiet, spec=spec_from_args(args))
+    runs = _identity.select_devices(load(args.runs, quiet=quiet, spec=spec_from_args(args)),
+                                    getattr(args, "device", None))
     _one_imu(runs)
     _fitrest.refuse_motion(_fitrest.rest_reports(args, runs), command="diagnose")
     start = time.perf_counter()

@@ -72,6 +72,19 @@ def check_autopilot_frames(runs: Sequence[Run]) -> None:
                 f"what it leaves. Log the calibration run with INS_TCAL{n}_ENABLE = 0")
 
 
+def select_devices(runs: Sequence[Run], wanted: Sequence[str] | None) -> list[Run]:
+    """``--device``: the runs whose ``device_id`` is one of ``wanted`` (all without it);
+    ConfigError naming the devices found when one given matches no run."""
+    if not wanted:
+        return list(runs)
+    found = sorted({_id(r.metadata, "device_id") for r in runs})
+    missing = [w for w in wanted if w not in found]
+    if missing:
+        raise ConfigError(f"--device {', '.join(missing)}: no such device in the inputs; "
+                          f"they hold {', '.join(repr(f) for f in found) or 'none named'}")
+    return [r for r in runs if _id(r.metadata, "device_id") in wanted]
+
+
 def recorded(runs: Sequence[Run]) -> dict[str, str]:
     """``sensor_id`` and ``vehicle_id`` the runs agree on (for the provenance)."""
     out = {}

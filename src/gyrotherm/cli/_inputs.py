@@ -43,6 +43,10 @@ def add_input_options(parser: argparse.ArgumentParser) -> None:
                    help="rosbag2/MCAP sensor_msgs/msg/Imu topic (default: auto)")
     g.add_argument("--temperature-topic", metavar="TOPIC",
                    help="rosbag2/MCAP temperature topic (default: auto)")
+    g.add_argument("--device", action="append", metavar="ID",
+                   help="use only the runs of this device id, repeatable (PX4 device_id, "
+                   "ArduPilot IMU[<n>], a CSV's device column; `gyrotherm import` lists "
+                   "them) (default: every device)")
 
 
 def spec_from_args(args: argparse.Namespace) -> InputSpec:
@@ -97,6 +101,8 @@ def load_inputs(args: argparse.Namespace, paths: list[str] | None = None) -> lis
     """Every run in ``paths`` (default ``args.runs``), read as the input options say,
     with a progress line unless ``args.quiet``."""
     from gyrotherm.cli._common import load_runs
+    from gyrotherm.cli._identity import select_devices
 
-    return load_runs(list(args.runs if paths is None else paths),
+    runs = load_runs(list(args.runs if paths is None else paths),
                      quiet=bool(getattr(args, "quiet", False)), spec=spec_from_args(args))
+    return select_devices(runs, getattr(args, "device", None))
