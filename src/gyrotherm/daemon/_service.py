@@ -276,13 +276,15 @@ class Daemon:
             pipeline.tick()
             silent = now - self._last_frame > pipeline.stale_after_s or self._bus is None
             health = self._health(pipeline, silent=silent)
+            # the queryable's snapshot first: a subscriber that saw this health message and
+            # then asks must never get an older one
+            self._snapshot = CalibrationInfo(self._calibration_id, self._calibration_dict(),
+                                             health)
             try:
                 sink.health.put(encode_health(health))
                 self._health_seq += 1
             except zenoh.ZError as exc:
                 log.warning("health publish failed: %s", zenoh_error_text(exc))
-            self._snapshot = CalibrationInfo(self._calibration_id, self._calibration_dict(),
-                                             health)
             self._notifier.status(self._status_line())
 
     def _do_reload(self, pipeline: Pipeline) -> None:
