@@ -108,6 +108,49 @@ def fit_cubic(runs: list[Run], mode: str, config: RestConfig | None = None) -> C
                         for r, m in zip(runs, masks, strict=True)])
 
 
+#: What the cubic in T is fitted to: ``rows`` (the rates at rest, pooled), ``model`` (the
+#: calibration's steady state: its bias at ΔT = 0 over the rows' temperature range), or
+#: ``auto`` (the one with the lower held-out error on ``--validate`` runs; ``model``
+#: without them).
+CUBIC_TARGETS = ("auto", "rows", "model")
+_GRID = 256
+
+
+def steady_state_bias(cal: Calibration, axis: str, temperature_c: np.ndarray) -> np.ndarray:
+    """The calibration's bias at ΔT = 0 (°/s): the base polynomial (clamped to its range)
+    plus a ``cubic`` effect; the time-dependent effects (warm-up, drift, hysteresis) have
+    no place in a steady state."""
+    t, d, _, _ = cal.clamp(temperature_c, np.zeros_like(temperature_c))
+    bias = cal.base_series(axis, t, d)
+    cubic = cal.effects_of(axis).cubic
+    if cubic is not None:
+        bias = bias + cubic.coefficient_dps_per_c3 * (t - cubic.t_ref_c) ** 3
+    return np.asarray(bias, dtype=np.float64)
+
+
+def fit_model_cubic(cal: Calibration, runs: list[Run], mode: str,
+                    config: RestConfig | None = None) -> CubicT:
+    """The cubic in T fitted to :func:`steady_state_bias` on a grid over the rest rows'
+    temperature readings inside the calibration's valid range (where the model is a
+    polynomial, not clamped); T_min, T_max are the rows' extremes, as the rows' cubic."""
+    temps = [r.temperature_c[_rest_rows(r, mode, config)] for r in runs]
+    t = np.concatenate(temps) if temps else np.zeros(0)
+    if len(t) < MIN_CUBIC_ROWS:
+        raise CalibrationError(f"{len(t)} rows at rest: the cubic in T needs at least "
+                               f"{MIN_CUBIC_ROWS}")
+    lo, hi = float(t.min()), float(t.max())
+    r = cal.valid_range  # where the model is a polynomial (clamped outside): fit there
+    grid = np.linspace(max(lo, r.t_min_c), min(hi, r.t_max_c), _GRID)
+    if not grid[-1] - grid[0] >= 1.0:
+        grid = np.linspace(lo, hi, _GRID)
+    fitted = fit_cubic_t([grid], [{a: steady_state_bias(cal, a, grid) for a in cal.axes}])
+    return CubicT(fitted.t_ref_c, lo, hi, fitted.coefficients_rad_s)  # the rows' T range
+
+
+def _mean_cubic_rms(errors: dict[str, dict[str, float]]) -> float:
+    return float(np.mean([e["cubic_rms_dps"] for e in errors.values()]))
+
+
 def validation_errors(cal: Calibration, cubic: CubicT, runs: list[Run],
                       mode: str, config: RestConfig | None = None
                       ) -> dict[str, dict[str, float]]:
@@ -176,11 +219,26 @@ def cmd_export(args: argparse.Namespace) -> int:
             "input_options"))))
     _identity.check_autopilot_frames(fit_runs)
     rest = _fitrest.rest_config(args)
-    cubic = fit_cubic(fit_runs, args.rest, rest)
     in_sample = not args.validate
     valid = fit_runs if in_sample else _of_device(cal, load_inputs(args, args.validate),
                                                   "--validate")
-    errors = validation_errors(cal, cubic, valid, args.rest, rest)
+    def candidate(name: str) -> CubicT:
+        return (fit_cubic(fit_runs, args.rest, rest) if name == "rows"
+                else fit_model_cubic(cal, fit_runs, args.rest, rest))
+
+    target = args.cubic_target
+    heldout: dict[str, float] = {}
+    if target == "auto" and not in_sample:  # measured on the held-out runs
+        fitted = {k: candidate(k) for k in ("rows", "model")}
+        scored = {k: validation_errors(cal, c, valid, args.rest, rest)
+                  for k, c in fitted.items()}
+        heldout = {k: _mean_cubic_rms(e) for k, e in scored.items()}
+        target = min(heldout, key=lambda k: heldout[k])
+        cubic, errors = fitted[target], scored[target]
+    else:
+        target = "model" if target == "auto" else target
+        cubic = candidate(target)
+        errors = validation_errors(cal, cubic, valid, args.rest, rest)
     written: dict[str, Any] = {}
     if args.px4:
         params = px4_params(cubic, instance=args.instance, device_id=device)
@@ -196,6 +254,8 @@ def cmd_export(args: argparse.Namespace) -> int:
                      "coefficients_rad_s": {a: list(c) for a, c in
                                             cubic.coefficients_rad_s.items()}},
            "instance": args.instance,
+           "cubic_target": {"chosen": target, "asked": args.cubic_target,
+                            "heldout_cubic_rms_dps": heldout or None},
            "fit_runs": [r.source for r in fit_runs],
            "validation": {"runs": [r.source for r in valid], "in_sample": in_sample,
                           "rest": args.rest, "axes": errors}, **written}
@@ -220,6 +280,12 @@ def _print_table(doc: dict[str, Any], cal: Calibration) -> None:
     c = doc["cubic"]
     print(f"cubic in T (PX4/ArduPilot form): T_ref {c['t_ref_c']:.3f} °C, range "
           f"[{c['t_min_c']:.3f}, {c['t_max_c']:.3f}] °C, fitted on {len(doc['fit_runs'])} runs")
+    ct = doc["cubic_target"]
+    how = (", ".join(f"{k} {v:.5f}" for k, v in ct["heldout_cubic_rms_dps"].items())
+           if ct["heldout_cubic_rms_dps"] else "")
+    print(f"fitted to: {ct['chosen']}" + (f" (held-out cubic RMS, °/s: {how})" if how else
+          " (the calibration's steady state; --validate RUNS measures both)"
+          if ct["asked"] == "auto" else ""))
     for key in ("px4", "ardupilot"):
         if key in doc:
             print(f"wrote {doc[key]['file']} ({len(doc[key]['params'])} parameters)")
@@ -253,6 +319,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "the calibration's provenance device_id when it is an integer)")
     e.add_argument("--validate", nargs="+", metavar="RUN", help="runs to score both forms "
                    "on (default: the fitting runs, in-sample)")
+    e.add_argument("--cubic-target", choices=CUBIC_TARGETS, default="auto",
+                   help="what the cubic in T is fitted to: rows (the rates at rest), model "
+                   "(the calibration at ΔT = 0, its steady state), or auto: the lower held-out "
+                   "error on --validate runs, model without them (default auto)")
     e.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",
                    help="write the parameters and errors as JSON to FILE (stdout when no FILE, "
                    "instead of the table)")
