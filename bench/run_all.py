@@ -151,6 +151,8 @@ def headline(benchmarks: dict[str, Any]) -> dict[str, Any]:
             "rss_steady_kB_median": {k: v.get("rss_steady_kB_median")
                                      for k, v in daemons.items()},
             "ratios_after_over_before": fp.get("ratios_after_over_before"),
+            "against_bare": fp.get("against_bare"),
+            "cpu_us_per_frame": _get(fp, "cpu", "summary"),
         }  # fmt: skip
     return out
 
