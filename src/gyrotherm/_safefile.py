@@ -42,8 +42,7 @@ from gyrotherm._errors import GyrothermError
 MAX_INT_DIGITS = 19
 #: Default deepest nesting of arrays and objects.
 MAX_DEPTH = 32
-_STRINGS = re.compile(r'"(?:[^"\\]|\\.)*"', re.DOTALL)
-_BRACKETS = re.compile(r"[\[\]{}]")
+_SPECIAL = re.compile(r'["\\\[\]{}]')
 
 
 def _kind(mode: int) -> str:
@@ -98,13 +97,28 @@ def read_bounded(path: Path, *, max_bytes: int, what: str,
 
 
 def nesting_depth(text: str) -> int:
-    """Deepest nesting of ``[``/``{`` in JSON ``text``, brackets inside strings ignored."""
+    """Deepest nesting of ``[``/``{`` in JSON ``text``, brackets inside strings ignored:
+    one pass over the characters that matter (quotes, backslashes, brackets), linear in
+    the text whatever it holds (a regular expression for strings backtracks
+    quadratically on ``"\\"\\"…``)."""
     depth = deepest = 0
-    for m in _BRACKETS.finditer(_STRINGS.sub("", text)):
-        if m.group() in "[{":
+    in_string = False
+    escaped_at = -1  # the position a backslash escapes
+    for m in _SPECIAL.finditer(text):
+        i, c = m.start(), m.group()
+        if i == escaped_at:
+            continue
+        if in_string:
+            if c == "\\":
+                escaped_at = i + 1
+            elif c == '"':
+                in_string = False
+        elif c == '"':
+            in_string = True
+        elif c in "[{":
             depth += 1
             deepest = max(deepest, depth)
-        else:
+        elif c in "]}":
             depth -= 1
     return deepest
 

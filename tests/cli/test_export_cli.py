@@ -54,6 +54,7 @@ def exported(tmp_path_factory: pytest.TempPathFactory) -> Exported:
     out = Exported(d, train, valid, cal, d / "gyro.params", d / "gyro.param", d / "export.json")
     assert main(["-q", "export", str(cal), "--px4", str(out.px4), "--ardupilot",
                  str(out.ap), "--device-id", "2359586", "--instance", "1",
+                 "--cubic-target", "rows",  # the autopilots' own scripts' target, refitted here
                  "--validate", str(valid), "--json", str(out.json)]) == 0
     return out
 

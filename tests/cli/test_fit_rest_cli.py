@@ -121,6 +121,7 @@ def test_export_of_a_device_fits_its_cubic_at_rest(
     for mode in ("auto", "all"):
         doc = tmp_path / f"{mode}.json"
         assert main(["-q", "export", str(tmp_path / "cal-imu-b.json"), "--rest", mode,
+                     "--cubic-target", "rows",  # the rows' cubic: what --rest acts on
                      "--ardupilot", str(tmp_path / f"{mode}.param"), "--json", str(doc)]) == 0
         docs[mode] = json.loads(doc.read_text())
     # each exported cubic, applied to the rows truly at rest (outside the turns ± 2 s)

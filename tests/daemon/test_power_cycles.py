@@ -33,11 +33,19 @@ NOT_CORRECTED = StatusFlags.TEMPERATURE_STALE | StatusFlags.ESTIMATOR_WARMUP
 TEMPERATURE_ID = FrameEncoder().layout.temperature.frame_id
 
 
-def _pipe(cal: Calibration, frames: list[can.Message]) -> tuple[Pipeline, RecordingSink]:
+def _pipe(cal: Calibration, frames: list[can.Message], *, wall: str = "constant"
+          ) -> tuple[Pipeline, RecordingSink]:
+    """``frames`` through a pipeline; the receive clock: ``constant`` (1e9 s: no wall time
+    passes), ``sensor`` (the frame's stamp: a stream received in real time, its silences
+    seen by the wall clock too) or ``rows`` (one second per temperature frame: a clock
+    that ticks on while the stamps may jump)."""
     sink = RecordingSink()
     pipe = Pipeline(FrameDecoder(), sink, calibration=cal, zero=ZERO)
+    rows = 0
     for msg in frames:
-        pipe.process(msg, 1.0e9)
+        rows += msg.arbitration_id == TEMPERATURE_ID
+        rx = {"constant": 1.0e9, "sensor": 1.0e9 + msg.timestamp, "rows": 1.0e9 + rows}[wall]
+        pipe.process(msg, rx)
     return pipe, sink
 
 
@@ -59,7 +67,7 @@ def _second_power_on(run: Run, order: str) -> list[can.Message]:
 def test_a_power_cycle_is_detected_whichever_frame_comes_first(
         short_runs: list[Run], stream_calibration: Calibration, order: str) -> None:
     run = short_runs[0].slice(0, 200)
-    pipe, sink = _pipe(stream_calibration, _second_power_on(run, order))
+    pipe, sink = _pipe(stream_calibration, _second_power_on(run, order), wall="sensor")
     assert pipe.counters().drops == {}
     msgs = [decode_rate(p) for p in sink.rates]
     assert len(msgs) == 400
@@ -84,6 +92,25 @@ def test_a_power_cycle_is_detected_whichever_frame_comes_first(
     for m in msgs[200:200 + start]:
         assert m.bias_dps == (0.0, 0.0, 0.0) and m.flags & NOT_CORRECTED
     assert pipe.compensation.power_on_s == run.time_s[-1] + 45.0 + run.time_s[0]
+
+
+@pytest.mark.parametrize(("wall", "unverified"), [("rows", True), ("sensor", False)])
+def test_a_stamp_jump_the_wall_clock_did_not_see_is_an_untrusted_power_on(
+        short_runs: list[Run], stream_calibration: Calibration, wall: str,
+        unverified: bool) -> None:
+    """The stamps jump +40 s at row 150 (> power_on_gap_s 30 s, inside the 60-s window)
+    and the gyro turns steadily at 0.3 °/s from there. Seen by the wall clock too
+    (``sensor``) it is a power cycle: a trusted zero takes the turn for an offset, as
+    documented. A wall clock that kept ticking a second per row (``rows``) says the stamps
+    jumped (a clock step): the power-on's zero is untrusted and ends ZERO_UNVERIFIED."""
+    run = short_runs[0].slice(0, 300)
+    pipe, sink = _pipe(stream_calibration, _clock_step(run, 150, 40.0, 0.3), wall=wall)
+    zero = pipe.compensation.zero
+    assert zero is not None and zero.status == ZeroStatus.DONE
+    assert pipe.compensation.power_on_s == run.time_s[150] + 40.0
+    last = decode_rate(sink.rates[-1])
+    assert bool(last.flags & UNVERIFIED) is unverified
+    assert not last.flags & (PENDING | FAILED)
 
 
 def test_a_silence_of_the_rates_alone_is_not_a_power_on(
@@ -143,3 +170,55 @@ def test_a_time_jump_while_pending_never_reports_failed(
     assert not any(decode_state(p).flags & FAILED for p in sink.states)
     zero = pipe.compensation.zero
     assert zero is not None and zero.status == ZeroStatus.DONE
+
+
+def test_a_reload_while_pending_restarts_the_window(
+        short_runs: list[Run], stream_calibration: Calibration) -> None:
+    """Another calibration (x's constant +0.04 °/s) loaded at row 35, inside the 20–50 s
+    window: the window starts again on the new model's residuals, so z is the mean of
+    raw − bias over rows 35–64 of the daemon's own messages (the new model's bias), not a
+    mix of both models' residuals."""
+    import dataclasses
+
+    run = short_runs[0].slice(0, 120)
+    frames = list(run_frames(run, FrameEncoder()))
+    pipe, sink = _pipe(stream_calibration, frames[:70])  # rows 0..34
+    coef = dict(stream_calibration.coefficients)
+    coef["x"] = (*coef["x"][:-1], coef["x"][-1] + 0.04)
+    pipe.set_calibration(dataclasses.replace(stream_calibration, coefficients=coef))
+    for msg in frames[70:]:
+        pipe.process(msg, 1.0e9)
+    zero = pipe.compensation.zero
+    assert zero is not None and zero.status == ZeroStatus.DONE
+    t = run.time_s - run.time_s[0]
+    assert zero.done_s == run.time_s[int(np.flatnonzero(t >= 65.0)[0])]
+    msgs = [decode_rate(p) for p in sink.rates]
+    rows = np.flatnonzero((t >= 35.0) & (t < 65.0))
+    raw = np.array([msgs[i].raw_rate_dps for i in rows])
+    model = np.array([msgs[i].bias_dps for i in rows])
+    np.testing.assert_allclose(zero.offset_dps, (raw - model).mean(axis=0), atol=1e-12)
+
+
+def test_the_carried_zero_uses_one_estimate_for_both_models(
+        short_runs: list[Run], stream_calibration: Calibration) -> None:
+    """A reload mid-heating with the same model but another estimator setting (τ × 1.0001:
+    the estimator restarts, the next estimate is a fresh one with ΔT ≈ 0): b_old and b_new
+    are taken at the same estimate, so an identical model carries the zero unchanged."""
+    import dataclasses
+
+    pipe, _ = _pipe(stream_calibration, [])
+    for msg in run_frames(short_runs[1], FrameEncoder()):  # until well into the heating
+        pipe.process(msg, 1.0e9)
+        est, z = pipe.last_estimate, pipe.compensation.zero
+        if (est is not None and abs(est.delta_t_c) > 0.5 and z is not None
+                and z.status == ZeroStatus.DONE and msg.arbitration_id != TEMPERATURE_ID):
+            break
+    zero = pipe.compensation.zero
+    assert zero is not None and zero.status == ZeroStatus.DONE
+    assert pipe.last_estimate is not None and abs(pipe.last_estimate.delta_t_c) > 0.5
+    before = zero.offset_dps
+    est = dataclasses.replace(stream_calibration.estimator,
+                              tau_s=stream_calibration.estimator.tau_s * 1.0001)
+    pipe.set_calibration(dataclasses.replace(stream_calibration, estimator=est))
+    assert zero.status == ZeroStatus.DONE and not zero.unverified
+    np.testing.assert_allclose(zero.offset_dps, before, atol=1e-12)  # to rounding

@@ -214,8 +214,9 @@ def test_a_saved_state_out_of_bounds_drops_that_part(
     elif kept == "zero":  # the zero and the power-on survive, the effects start afresh
         assert comp.power_on_s == doc["power_on_s"]
         assert list(zero.offset_dps) == doc["zero"]["offset_dps"]
-    else:  # nothing: a power-on at the first frame, a trusted zero measured again
-        assert comp.power_on_s == run.time_s[300] and zero.trusted
+    else:  # nothing: a power-on at the first frame; whether the gyro kept running is
+        # unknown, so the zero measured again is untrusted
+        assert comp.power_on_s == run.time_s[300] and not zero.trusted
     _assert_sane(pipe, sink)
     # the bad value is never saved again
     keeper.save(comp, "cid", 0.0, force=True)
@@ -289,3 +290,46 @@ def test_save_then_load_round_trips(tmp_path: Path,
     back = load(path)
     assert back is not None
     assert back.snapshot.state == doc["compensator"] and back.snapshot.zero == doc["zero"]
+
+
+_STRINGISH = st.text(alphabet='[]{}"\\ab:,', max_size=12)
+
+
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(doc=st.recursive(st.none() | st.integers() | _STRINGISH,
+                        lambda inner: st.lists(inner, max_size=3)
+                        | st.dictionaries(_STRINGISH, inner, max_size=3), max_leaves=15))
+def test_nesting_depth_counts_only_structure(doc: Any) -> None:
+    """The bracket count the parser relies on (before ``json`` recurses) equals the
+    document's real depth, whatever quotes, backslashes and brackets its strings hold
+    (a regular expression for strings once backtracked quadratically on them)."""
+    from gyrotherm._safefile import nesting_depth
+
+    def depth(o: Any) -> int:
+        if isinstance(o, dict):
+            return 1 + max([depth(v) for v in o.values()], default=0)
+        if isinstance(o, list):
+            return 1 + max([depth(v) for v in o], default=0)
+        return 0
+
+    assert nesting_depth(json.dumps(doc)) == depth(doc)
+
+
+@pytest.mark.parametrize("status", ["done", "failed"])
+def test_a_state_of_another_calibration_that_the_gyro_continues(
+        tmp_path: Path, saved_run: tuple[Run, dict[str, Any]], v2: Calibration,
+        status: str) -> None:
+    """The saved state is of another calibration (not taken back) but the first frame
+    continues its time: the gyro kept running and may be moving, so the zero is measured
+    again untrusted (ZERO_UNVERIFIED when taken), and one that had failed stays failed."""
+    run, doc = saved_run
+    other = _edit(doc, "calibration_id", "another-calibration")
+    other = _edit(other, "zero.status", status)
+    pipe, sink, _ = _restart(tmp_path, other, run, v2)
+    zero = pipe.compensation.zero
+    assert zero is not None and not zero.trusted
+    if status == "failed":
+        assert zero.status.name == "FAILED"
+    else:
+        assert zero.status.name == "DONE" and zero.unverified
+    _assert_sane(pipe, sink)

@@ -38,7 +38,7 @@ from gyrotherm.compensation._plausibility import check_plausible
 from gyrotherm.estimators import EstimatorConfig
 
 #: Largest calibration file read, bytes (a calibration is a few kB).
-MAX_CALIBRATION_BYTES = 4 << 20
+MAX_CALIBRATION_BYTES = 1 << 20
 
 
 def load_calibration(path: str | Path) -> Calibration:

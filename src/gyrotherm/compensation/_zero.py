@@ -160,6 +160,10 @@ class BootZero:
         self.start_s = self.done_s = self._open_s = math.nan
         self.unverified = False
 
+    def discard_window(self) -> None:
+        """Drop the open window (its samples' residuals are against another model)."""
+        self._open_s = math.nan
+
     def fail(self) -> None:
         """Failed (z = 0) until the next :meth:`start`."""
         self.status, self.offset_dps, self._open_s = ZeroStatus.FAILED, (0.0, 0.0, 0.0), math.nan

@@ -84,6 +84,12 @@ class EffectsSnapshot:
     """Where it was read (for the journal)."""
 
 
+def _kept_running(since_saved_s: float, gap_s: float) -> bool:
+    """The first frame continues a saved run within the gap, or nobody can tell (NaN);
+    a frame further on, or a clock that restarted (negative), is a power cycle."""
+    return math.isnan(since_saved_s) or 0.0 <= since_saved_s <= gap_s
+
+
 def _same_kinds(a: Calibration, b: Calibration) -> bool:
     return a.axes == b.axes and all(a.effect_names(x) == b.effect_names(x) for x in a.axes)
 
@@ -97,7 +103,8 @@ class Compensation:
                  ) -> None:
         self.power_on_gap_s = power_on_gap_s
         self.temperature_range_c = temperature_range_c
-        self._carry: tuple[float, float, float] | None = None  # b_old of a zero to carry
+        self._last_inputs: tuple[float, float, float, float] | None = None  # t, T, ΔT, t_on
+        self._unusable: EffectsSnapshot | None = None  # a saved state not taken back
         self.zero = None if zero is None else BootZero(zero)
         self.calibration: Calibration | None = None
         self.compensator: Compensator | None = None
@@ -112,20 +119,8 @@ class Compensation:
         if calibration == self.calibration:
             return  # the same model: its state continues, nothing is stepped again
         old = self.compensator
-        old_bias = self._cached
-        self.calibration, self._cached, self._restore, self._carry = calibration, None, None, None
-        z = self.zero
-        if z is not None:
-            if calibration is None:
-                z.stop()
-            elif z.status == ZeroStatus.OFF:  # at the next rate frame; after the power-on
-                z.start(trusted=math.isnan(self.power_on_s))  # the vehicle may be moving
-            elif z.status == ZeroStatus.DONE:
-                if old_bias is not None and not old_bias[1] & StatusFlags.BIAS_INVALID:
-                    self._carry = old_bias[0]  # carried at the next valid step
-                else:
-                    z.start(trusted=False, reference=z.offset_dps)
-            # PENDING goes on (its window restarts on the new residuals); FAILED stays
+        old_bias, last_inputs = self._cached, self._last_inputs
+        self.calibration, self._cached, self._restore = calibration, None, None
         if calibration is None:
             self.compensator = None
         elif old is not None and _same_kinds(old.calibration, calibration):
@@ -135,25 +130,56 @@ class Compensation:
             self.compensator = calibration.compensator()
             if old is not None:
                 log.info("calibration changed: other effects, their state starts now")
-
-    def _carry_zero(self, new_bias: tuple[float, float, float]) -> None:
-        """z' = z + b_old − b_new (module docstring), at the first valid new bias."""
-        z, old = self.zero, self._carry
-        self._carry = None
-        if z is None or old is None or z.status != ZeroStatus.DONE:
+        z = self.zero
+        if z is None:
             return
-        carried = tuple(o + b0 - b1 for o, b0, b1 in zip(z.offset_dps, old, new_bias,
-                                                         strict=True))
+        if calibration is None:
+            z.stop()
+        elif z.status == ZeroStatus.OFF:  # at the next rate frame; after the power-on
+            z.start(trusted=math.isnan(self.power_on_s))  # the vehicle may be moving
+        elif z.status == ZeroStatus.DONE:
+            self._carry_zero(old_bias, last_inputs)
+        elif z.status == ZeroStatus.PENDING:
+            z.discard_window()  # the old model's residuals must not mix with the new's
+        # FAILED stays failed
+
+    def _carry_zero(self, old_bias: tuple[tuple[float, float, float], StatusFlags] | None,
+                    inputs: tuple[float, float, float, float] | None) -> None:
+        """z' = z + b_old − b_new (module docstring), b_new the new calibration at the very
+        estimate b_old was computed at (on a copy of the new compensator: its own state is
+        stepped by the pipeline as usual)."""
+        z, comp = self.zero, self.compensator
+        assert z is not None and comp is not None
+        carried: tuple[float, ...] = ()
+        if old_bias is not None and not old_bias[1] & StatusFlags.BIAS_INVALID and inputs:
+            try:
+                b = Compensator.load_state(comp.calibration, comp.state_dict()).step(*inputs)
+                new = tuple(b.bias_dps.get(a, 0.0) for a in ("x", "y", "z"))
+                if not b.flags & _SKIPPED:
+                    carried = tuple(o + b0 - b1 for o, b0, b1 in zip(
+                        z.offset_dps, old_bias[0], new, strict=True))
+            except (ArithmeticError, ValueError):
+                carried = ()
         limit = z.config.max_offset_dps
-        if all(abs(v) <= limit for v in carried):
+        if carried and all(math.isfinite(v) and abs(v) <= limit for v in carried):
             z.offset_dps = (carried[0], carried[1], carried[2])
             log.info("boot-time zero carried over to the new calibration (not measured "
                      "again): x %+.5f, y %+.5f, z %+.5f °/s", *carried)
-        else:
-            log.warning("boot-time zero cannot be carried over (%s °/s beyond max_offset_dps "
-                        "= %g °/s): measured again from now, flagged ZERO_UNVERIFIED when "
-                        "taken", ", ".join(f"{v:+.4g}" for v in carried), limit)
-            z.start(trusted=False, reference=z.offset_dps)
+            return
+        log.warning("boot-time zero cannot be carried over (%s): measured again from now, "
+                    "flagged ZERO_UNVERIFIED when taken",
+                    "no valid bias of both calibrations at one estimate" if not carried else
+                    ", ".join(f"{v:+.4g}" for v in carried) + f" °/s beyond max_offset_dps "
+                    f"= {limit:g} °/s")
+        z.start(trusted=False)
+
+    def note_unusable_state(self, snapshot: EffectsSnapshot | None) -> None:
+        """A saved state this daemon cannot take back (another calibration; or None: a file
+        that could not be read). If the gyro kept running (the first frame continues the
+        saved time within the gap; unknown for None) the vehicle may be moving: the zero
+        starts untrusted, or stays failed if it had failed."""
+        self._unusable = snapshot if snapshot is not None else EffectsSnapshot(
+            math.nan, math.nan, None)
 
     def restore_at_power_on(self, snapshot: EffectsSnapshot) -> None:
         """Continue from ``snapshot`` if the first temperature frame continues it; its
@@ -163,6 +189,7 @@ class Compensation:
         problem = check_times(snapshot.power_on_s, snapshot.time_s)
         if problem:
             log.warning("%s ignored, starting from power-on: %s", snapshot.source, problem)
+            self.note_unusable_state(None)
             return
         state = snapshot.state
         if state is not None and self.compensator is not None:
@@ -201,7 +228,8 @@ class Compensation:
         if first and snap is not None:
             log.info("saved effects state not restored: first frame at %r s does not continue "
                      "%r s within %g s; power-on now", time_s, snap.time_s, self.power_on_gap_s)
-        self.power_on_s, self._cached, self._carry = time_s, None, None
+        unusable, self._unusable = self._unusable, None
+        self.power_on_s, self._cached = time_s, None
         if self.compensator is not None:
             self.compensator.reset()
             z = self.zero
@@ -209,6 +237,17 @@ class Compensation:
                 if time_base:
                     z.start(time_s, trusted=False,
                             reference=z.offset_dps if z.status == ZeroStatus.DONE else None)
+                elif first and unusable is not None and _kept_running(
+                        time_s - unusable.time_s, self.power_on_gap_s):
+                    # the gyro may have kept running (or nobody can tell): not a power-on
+                    # the daemon can trust, and a zero that had failed stays failed
+                    failed = (unusable.zero or {}).get("status") == "failed"
+                    z.start(time_s, trusted=False)
+                    if failed:
+                        z.fail()
+                    log.info("boot-time zero after a restart whose saved state was not taken "
+                             "back: %s", "stays failed until the next power-on" if failed
+                             else "measured again, flagged ZERO_UNVERIFIED when taken")
                 else:
                     z.start(time_s)
 
@@ -230,6 +269,7 @@ class Compensation:
         if not step and self._cached is not None:
             return self._cached
         self.time_s, self.t_on_s = time_s, time_s - self.power_on_s
+        self._last_inputs = (time_s, temperature_c, delta_t_c, self.t_on_s)
         try:
             b = c.step(time_s, temperature_c, delta_t_c, self.t_on_s)
             bias = (b.bias_dps.get("x", 0.0), b.bias_dps.get("y", 0.0), b.bias_dps.get("z", 0.0))
@@ -247,8 +287,6 @@ class Compensation:
         else:
             bias, flags = _ZERO, StatusFlags.BIAS_INVALID
         self._cached = (bias, flags)
-        if self._carry is not None and valid:
-            self._carry_zero(bias)
         return self._cached
 
     def zero_state(self) -> ZeroState | None:

@@ -150,6 +150,7 @@ class EffectsKeeper:
             saved = load(self.path)
         except CalibrationError as exc:
             log.warning("effects state ignored, starting from power-on: %s", exc)
+            compensation.note_unusable_state(None)
             return
         if saved is None:
             return
@@ -158,6 +159,7 @@ class EffectsKeeper:
             log.info("effects state in %s is for %s/%s calibration %s, not %s/%s %s: "
                      "starting from power-on", self.path, saved.vehicle, saved.sensor,
                      saved.calibration_id, self._vehicle, self._sensor, calibration_id)
+            compensation.note_unusable_state(saved.snapshot)
             return
         compensation.restore_at_power_on(saved.snapshot)
 

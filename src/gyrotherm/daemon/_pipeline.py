@@ -99,6 +99,17 @@ def _log_zero(zero: BootZero, time_s: float) -> None:
                     "the next power-on", zero.config.deadline_s, zero.windows_rejected)
 
 
+#: A sensor silence counts as a power cycle the daemon can trust when the wall clock saw
+#: at least this share of it too; stamps that jumped ahead faster than the wall clock (a
+#: clock step, or frames replayed faster than real time) make a power-on whose boot-time
+#: zero is untrusted (``ZERO_UNVERIFIED`` unless it agrees with the previous offset).
+WALL_SILENCE_SHARE = 0.5
+
+
+def _wall_saw(wall_gap_s: float, sensor_gap_s: float) -> bool:
+    return wall_gap_s >= WALL_SILENCE_SHARE * sensor_gap_s  # NaN: False
+
+
 class Pipeline(TimeWindow):
     """Frame processing for one sensor; not thread-safe (one receiving thread)."""
 
@@ -199,9 +210,10 @@ class Pipeline(TimeWindow):
                 if not base or self._rate_time_base(t):  # NaN: a time base (or a drop)
                     if t > self._rate_ref_s:
                         self._rate_ref_s = t
-                    self._rate_rx_s = receive_time_s
+                    prev_rx, self._rate_rx_s = self._rate_rx_s, receive_time_s
                     self._rate_run_n = 0
-                    self._on_rate(result, receive_time_s, base)  # type: ignore[arg-type]
+                    self._on_rate(result, receive_time_s, base,  # type: ignore[arg-type]
+                                  receive_time_s - prev_rx)
                 else:
                     self._drops[BAD_TIMESTAMP] += 1
                     counter = result.counter  # type: ignore[union-attr]
@@ -219,7 +231,8 @@ class Pipeline(TimeWindow):
                 log.exception("frame %d could not be processed (%d so far); "
                               "dropped as internal_error", self._received, n)
 
-    def _on_rate(self, s: RateSample, receive_time_s: float, base: bool) -> None:
+    def _on_rate(self, s: RateSample, receive_time_s: float, base: bool,
+                 wall_gap_s: float) -> None:
         t = s.time_s
         prev = self.last_sensor_time_s
         self.last_sensor_time_s = t
@@ -231,10 +244,12 @@ class Pipeline(TimeWindow):
         elif (prev is not None and t - prev > self._power_on_gap_s
               and t - self._last_temperature_s > self._power_on_gap_s
               and self._last_temperature_s > -math.inf):
+            seen = _wall_saw(wall_gap_s, t - prev)
             self._rate_power_on(t, f"both streams silent for "
                                 f"{t - max(prev, self._last_temperature_s):.1f} s (> "
                                 f"power_on_gap_s = {self._power_on_gap_s:g} s), a rate frame "
-                                "first", time_base=False)
+                                "first" + ("" if seen else "; the wall clock did not see the "
+                                           "silence: the zero is untrusted"), time_base=not seen)
         flags = self._flags
         if t - self._last_temperature_s > self._estimator.config.stale_after_s:
             flags |= StatusFlags.TEMPERATURE_STALE
@@ -312,8 +327,9 @@ class Pipeline(TimeWindow):
             elif rate_t is not None and t - rate_t <= self._power_on_gap_s:
                 log.warning("temperature frames silent for %.1f s while rate frames kept "
                             "coming: not a power-on (effects and zero continue)", t - last)
-            else:
-                self._compensation.power_on(t, first=False)
+            else:  # a silence the wall clock did not see: the stamps jumped (untrusted)
+                self._compensation.power_on(t, first=False, time_base=not _wall_saw(
+                    receive_time_s - self._temperature_rx_s, t - last))
         if self._power_on_waits_for == "temperature":
             self._power_on_waits_for = None
         self._temperature_run_n = 0
