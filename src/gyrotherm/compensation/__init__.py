@@ -4,9 +4,9 @@ boot-time zero."""
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from gyrotherm._lazy import lazy_names
 from gyrotherm.compensation._calibration import BiasEstimate, Calibration, ValidRange
 from gyrotherm.compensation._calibration_file import (
     load_calibration,
@@ -90,15 +90,5 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    """The offline names, imported on first use (PEP 562): the daemon never loads them."""
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_LAZY})
+# the offline names, imported on first use (PEP 562): the daemon never loads them
+__getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from gyrotherm._lazy import lazy_names
 from gyrotherm.estimators._temperature import (
     EstimatorConfig,
     TemperatureEstimate,
@@ -28,15 +28,5 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    """The offline names, imported on first use (PEP 562): the daemon never loads them."""
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_LAZY})
+# the offline names, imported on first use (PEP 562): the daemon never loads them
+__getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())
