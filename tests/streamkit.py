@@ -27,7 +27,7 @@ import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import can
 import numpy as np
@@ -170,6 +170,16 @@ def stdout_after_sigterm(proc: subprocess.Popen[str], timeout_s: float) -> str:
         proc.send_signal(signal.SIGABRT)
         pytest.fail(f"no exit after SIGTERM:\n{proc.communicate(timeout=timeout_s)[1]}")
     return stdout
+
+
+def stop_process(proc: subprocess.Popen[Any], timeout_s: float = 10.0) -> None:
+    """SIGTERM a helper process (a router), SIGKILL it if it has not exited in time."""
+    proc.terminate()
+    try:
+        proc.wait(timeout_s)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(timeout_s)
 
 
 def enable_adminspace(config: zenoh.Config) -> zenoh.Config:

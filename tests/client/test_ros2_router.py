@@ -49,7 +49,7 @@ from gyrotherm.client._record import record_main
 from gyrotherm.codecs import FrameEncoder, Run
 from gyrotherm.compensation import Calibration
 from gyrotherm.daemon import Daemon, parse_config
-from streamkit import free_port, run_frames
+from streamkit import free_port, run_frames, stop_process
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "daemon"))
 from faultkit import Lines
@@ -201,12 +201,7 @@ def router(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[int]:
         assert lines.wait_for(re.escape(f"127.0.0.1:{port}"), TIMEOUT_S), lines.lines
         yield port
     finally:
-        proc.terminate()
-        try:
-            proc.wait(10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(10)
+        stop_process(proc)
 
 
 @pytest.mark.parametrize("topology", ["shared_router", "separate"])

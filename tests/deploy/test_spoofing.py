@@ -62,7 +62,7 @@ from gyrotherm.daemon import Daemon, parse_config
 from gyrotherm.estimators import EstimatorConfig
 from gyrotherm.sim import GyroParams, chamber_runs
 from pkikit import make_pki, tls_files
-from streamkit import free_port, open_ephemeral
+from streamkit import free_port, open_ephemeral, stop_process
 
 ROOT = Path(__file__).resolve().parents[2]
 DEPLOY_ZENOH = ROOT / "deploy" / "zenoh"
@@ -174,12 +174,7 @@ def _router(kind: str, config: zenoh.Config, tmp: Path) -> Iterator[str]:
     try:
         yield endpoint
     finally:
-        proc.terminate()
-        try:
-            proc.wait(10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(10)
+        stop_process(proc)
         log.close()
 
 
