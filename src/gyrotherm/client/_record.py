@@ -70,9 +70,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--foxglove-host", default="127.0.0.1",
                    help="address the Foxglove server binds (default 127.0.0.1, loopback)")
     p.add_argument("--ros2", action="store_true",
-                   help="publish sensor_msgs/Imu (imu, imu_raw) and sensor_msgs/Temperature "
+                   help="publish every CDR channel (Imu imu/imu_raw, Temperature "
+                   "temperature/delta_t, Vector3Stamped bias, DiagnosticArray state/health) "
                    "as a ROS 2 node on rmw_zenoh_cpp's key expressions and liveliness tokens, "
-                   "on the --connect session (default: off)")
+                   "with an rmw_zenoh node's session (gossip to the router) on the --connect "
+                   "endpoints (default: off)")
     p.add_argument("--ros-domain-id", type=int, default=None, metavar="N",
                    help="with --ros2: ROS_DOMAIN_ID, 0..232 (default 0)")
     p.add_argument("--ros-namespace", default=None, metavar="NS",
