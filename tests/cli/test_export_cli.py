@@ -22,9 +22,8 @@ import numpy as np
 import pytest
 
 from gyrotherm.cli import main
-from gyrotherm.codecs import read_run, write_run
+from gyrotherm.codecs import read_run
 from gyrotherm.compensation import features, load_calibration, score
-from gyrotherm.sim import chamber_runs
 
 AXES = "xyz"
 PX4_PATTERNS = (r"TC_G_ENABLE", r"TC_G[0-3]_(ID|TREF|TMIN|TMAX)", r"TC_G[0-3]_X[0-3]_[0-2]")
@@ -43,14 +42,8 @@ class Exported:
 
 
 @pytest.fixture(scope="module")
-def exported(tmp_path_factory: pytest.TempPathFactory) -> Exported:
-    d = tmp_path_factory.mktemp("export")
-    train = [write_run(r, d / f"{r.name}.csv")
-             for r in chamber_runs([10, 30, 60], seed=5, rate_hz=2.0, hold_s=900.0)]
-    valid = write_run(chamber_runs([45], seed=5, rate_hz=2.0, hold_s=900.0,
-                                   validation=True)[0], d / "valid.csv")
-    cal = d / "cal.json"
-    assert main(["-q", "fit", *map(str, train), "--out", str(cal), "--no-validation"]) == 0
+def exported(chamber_fit: tuple[Path, list[Path], Path, Path]) -> Exported:
+    d, train, valid, cal = chamber_fit
     out = Exported(d, train, valid, cal, d / "gyro.params", d / "gyro.param", d / "export.json")
     assert main(["-q", "export", str(cal), "--px4", str(out.px4), "--ardupilot",
                  str(out.ap), "--device-id", "2359586", "--instance", "1",

@@ -15,20 +15,12 @@ import numpy as np
 import pytest
 
 from gyrotherm.cli import main
-from gyrotherm.codecs import write_run
 from gyrotherm.compensation import load_calibration
-from gyrotherm.sim import chamber_runs
 
 
 @pytest.fixture(scope="module")
-def fitted(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    d = tmp_path_factory.mktemp("target")
-    train = [write_run(r, d / f"{r.name}.csv")
-             for r in chamber_runs([10, 30, 60], seed=5, rate_hz=2.0, hold_s=900.0)]
-    valid = write_run(chamber_runs([45], seed=5, rate_hz=2.0, hold_s=900.0,
-                                   validation=True)[0], d / "valid.csv")
-    cal = d / "cal.json"
-    assert main(["-q", "fit", *map(str, train), "--out", str(cal), "--no-validation"]) == 0
+def fitted(chamber_fit: tuple[Path, list[Path], Path, Path]) -> tuple[Path, Path]:
+    _, _, valid, cal = chamber_fit
     return cal, valid
 
 
