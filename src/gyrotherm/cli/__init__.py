@@ -58,6 +58,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         return record_main(args_list[quiet + 1:] + (["-q"] if quiet else []),
                            formatter_class=_conventions.DefaultsFormatter)
+    if _is_run(args_list):
+        _run.preload()  # the daemon's dependencies, first and near the bottom of the stack
     args = parse_args(args_list)
     return run_command(args.func, args, args_list)  # one line per failure (cli._guard)
 
@@ -65,11 +67,15 @@ def main(argv: Sequence[str] | None = None) -> int:
 def parse_args(args_list: Sequence[str]) -> argparse.Namespace:
     """Parse a command line as :func:`main` does: ``gyrotherm [-q] [--debug] run ...``
     with the ``run`` parser alone, anything else with every subcommand's."""
+    return build_parser(run_only=_is_run(args_list)).parse_args(args_list)
+
+
+def _is_run(args_list: Sequence[str]) -> bool:
+    """Whether the command line is ``gyrotherm [-q] [--debug] run ...``."""
     i = 0
     while i < len(args_list) and args_list[i] in _GLOBAL_FLAGS:
         i += 1
-    run_only = list(args_list[i:i + 1]) == ["run"]
-    return build_parser(run_only=run_only).parse_args(args_list)
+    return list(args_list[i:i + 1]) == ["run"]
 
 
 __all__ = ["build_parser", "main", "parse_args"]

@@ -7,6 +7,27 @@ import logging
 import sys
 
 
+def preload() -> None:
+    """Import the daemon's third-party dependencies with a shallow Python stack.
+
+    CPython 3.11 keeps frames in 16 KiB chunks that it maps and unmaps as the stack crosses
+    a chunk's end. Imported deep inside gyrotherm's own imports, numpy's and the signal
+    module's import-time loops sit on such a boundary and map/unmap a chunk per call:
+    1 374 ``mmap``/``munmap`` pairs in ``gyrotherm run``'s start (3 861 under ``python -m``)
+    against 1 in a bare import of the same modules, ≈ 20–60 ms of system time
+    (docs/BENCHMARKS.md, "Footprint"). Imported here first, two frames below ``main``,
+    they load as in a bare interpreter; the daemon's own imports then find them loaded.
+    """
+    from gyrotherm._memory import limit_arenas
+
+    limit_arenas()  # before numpy's, zenoh's and the bus's threads start
+    import can  # noqa: F401
+    import cantools  # noqa: F401
+    import msgpack  # noqa: F401
+    import numpy  # noqa: F401
+    import zenoh  # noqa: F401
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from gyrotherm.daemon import Daemon, load_config  # only `run` loads the daemon and zenoh
 

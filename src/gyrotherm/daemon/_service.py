@@ -45,6 +45,7 @@ from typing import Any
 
 import zenoh
 
+from gyrotherm._memory import TRIM_PERIOD_S, release_free_heap
 from gyrotherm._zenoh import keys, session_config, zenoh_error_text
 from gyrotherm.bus import FrameSource
 from gyrotherm.codecs import FrameDecoder
@@ -99,6 +100,7 @@ class Daemon:
         self._started = time.monotonic()
         self._health_seq = 0
         self._last_health = -math.inf
+        self._last_trim = time.monotonic()
         self._last_frame = time.monotonic()
         self._bus: FrameSource | None = None
         self._signalled: int | None = None  # set by the signal handlers (no locks there)
@@ -191,6 +193,8 @@ class Daemon:
             self._bus = bus
             self._started = self._last_frame = time.monotonic()
             log.info("up: %s %s → %s", cfg.can.interface, cfg.can.channel, k.rate)
+            release_free_heap()  # start-up's temporaries (gyrotherm._memory)
+            self._last_trim = time.monotonic()
             self.ready.set()
             self._notifier.ready(status=self._status_line())
             self._loop(pipeline, sink, reopen=source is None)
@@ -271,6 +275,9 @@ class Daemon:
             self._do_reload(pipeline)
         now = time.monotonic()
         self._save_effects(pipeline)
+        if now - self._last_trim >= TRIM_PERIOD_S:
+            self._last_trim = now
+            release_free_heap()
         if now - self._last_health >= self.config.health_period_s:
             self._last_health = now
             pipeline.tick()
