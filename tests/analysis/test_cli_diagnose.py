@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -62,7 +63,8 @@ def test_cli_writes_schema_json_and_report(tmp_path: Path) -> None:
         assert (tmp_path / "rep" / name).stat().st_size > 0
 
 
-def test_cli_errors_name_the_problem(tmp_path: Path) -> None:
+def test_cli_errors_name_the_problem(tmp_path: Path,
+                                     capsys: pytest.CaptureFixture[str]) -> None:
     runs, _ = synth_runs(SynthConfig(duration_s=900.0, rate_hz=2.0), n_runs=1, seed=1)
     one = str(write_run(runs[0], tmp_path / "one.csv"))
     args = _parser().parse_args(["diagnose", one, "--json", str(tmp_path / "o.json")])
@@ -71,9 +73,10 @@ def test_cli_errors_name_the_problem(tmp_path: Path) -> None:
     log = tmp_path / "bus.csv"  # a candump log, whatever its name says
     log.write_text("(1.000000) can0 123#00\n")
     args = _parser().parse_args(["diagnose", one, str(log), "--json", "-"])
-    with pytest.raises(RunFileError, match=r"bus\.csv: candump log has no valid rate frame "
-                       r".*unknown_id: 1"):
+    with pytest.raises(CalibrationError, match="at least 2 runs"):  # the good log goes on
         args.func(args)
+    assert re.search(r"gyrotherm: error: \S*bus\.csv: candump log has no valid rate frame "
+                     r".*unknown_id: 1", capsys.readouterr().err)
     args = _parser().parse_args(["diagnose", one, one, "--json", "-", "--axis", "y"])
     with pytest.raises(RunFileError, match="share a name"):
         args.func(args)

@@ -11,9 +11,9 @@ from typing import Any
 
 from gyrotherm._errors import ConfigError, RunFileError
 from gyrotherm.cli import _conventions as conv
-from gyrotherm.cli import _fitrest, _identity
+from gyrotherm.cli import _fitrest, _pool, _prep
 from gyrotherm.cli._common import load_runs
-from gyrotherm.cli._inputs import add_input_options, spec_from_args
+from gyrotherm.cli._inputs import add_input_options
 from gyrotherm.codecs import Run
 from gyrotherm.readers import InputSpec
 
@@ -22,7 +22,11 @@ def load(paths: Sequence[str], *, quiet: bool = False,
          spec: InputSpec | None = None) -> list[Run]:
     """Run files (CSV version 1) and ``candump -l`` logs (told apart by content,
     see :func:`gyrotherm.cli._common.load_run`); run names must be unique."""
-    runs = load_runs(paths, quiet=quiet, spec=spec)
+    return unique_names(load_runs(paths, quiet=quiet, spec=spec))
+
+
+def unique_names(runs: list[Run]) -> list[Run]:
+    """``runs``, refused (RunFileError) when two share a name."""
     names = [r.name for r in runs]
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
@@ -70,10 +74,10 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         raise ConfigError(f"--margin = {args.margin!r} is outside (0, 1)")
     conv.check_runs(args.runs, command="diagnose")
     conv.check_json_target(args.json)
-    runs = _identity.select_devices(load(args.runs, quiet=quiet, spec=spec_from_args(args)),
-                                    getattr(args, "device", None))
+    loaded = _prep.load(args, _prep.prep_from_args(args))  # read + rest on the workers
+    runs = unique_names(loaded.runs)
     _one_imu(runs)
-    _fitrest.refuse_motion(_fitrest.rest_reports(args, runs), command="diagnose")
+    _fitrest.refuse_motion(loaded.reports, command="diagnose")
     start = time.perf_counter()
 
     def say(msg: str) -> None:
@@ -101,7 +105,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         print(f"diagnose: found {found}; extended {result.extended.name}: held-out RMS "
               f"{result.baseline_heldout_rms_dps:.4g} → {result.extended_heldout_rms_dps:.4g} °/s "
               f"(gain {result.gain:.2f})", file=sys.stderr)
-    return 0
+    return loaded.exit_status  # 2 when a log failed (diagnosed on the others)
 
 
 def _write_calibration(args: argparse.Namespace, runs: Sequence[Run], result: Any,
@@ -141,6 +145,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "axis its own selection (paper model where nothing is found); "
                    "coefficients refitted on the stored estimator's output")
     add_input_options(p)
+    _pool.add_worker_options(p)
     _fitrest.add_rest_options(p, auto="auto: refuse runs in which rest detection finds "
                               "motion (the diagnosis needs whole runs at rest)")
     p.set_defaults(func=cmd_diagnose)

@@ -21,8 +21,9 @@ from pathlib import Path
 from gyrotherm import __version__
 from gyrotherm._errors import ConfigError, RunFileError
 from gyrotherm.cli import _conventions as conv
+from gyrotherm.cli import _pool, _prep
 from gyrotherm.cli._fitrest import run_file_stem
-from gyrotherm.cli._inputs import add_input_options, load_inputs
+from gyrotherm.cli._inputs import add_input_options
 from gyrotherm.codecs import Run, write_run
 
 
@@ -53,7 +54,8 @@ def _targets(out: Path, runs: list[Run]) -> list[Path]:
 
 def cmd_import(args: argparse.Namespace) -> int:
     conv.check_json_target(args.json)
-    runs = load_inputs(args)
+    loaded = _prep.load(args, _prep.prep_from_args(args))  # read on the workers (--jobs)
+    runs = loaded.runs
     out = Path(args.out)
     targets = _targets(out, runs)
     if args.json not in (None, conv.STDOUT) and Path(args.json).resolve() in {
@@ -75,7 +77,7 @@ def cmd_import(args: argparse.Namespace) -> int:
                   f"{t_lo:.2f}…{t_hi:.2f} °C, from {run.source} [{fmt}])")
     if args.json:
         conv.emit_json({"written": written}, args.json)
-    return 0
+    return loaded.exit_status  # 2 when a log failed (the others written)
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -90,4 +92,5 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     conv.add_json_option(p, what="the run files written (path, run, rows, axes, °C range, "
                          "source, format, device id)")
     add_input_options(p)
+    _pool.add_worker_options(p)
     p.set_defaults(func=cmd_import)

@@ -11,7 +11,7 @@ from typing import Any
 
 from gyrotherm._errors import ConfigError
 from gyrotherm.cli import _conventions as conv
-from gyrotherm.cli import _fitgates, _fitrest, _identity, _paper
+from gyrotherm.cli import _fitgates, _fitrest, _identity, _paper, _pool, _prep
 from gyrotherm.cli._common import (
     add_estimator_options,
     estimator_from_args,
@@ -83,13 +83,15 @@ def cmd_fit(args: argparse.Namespace) -> int:
     names = _effect_names(args)
     conv.check_runs(args.runs, command="fit")
     conv.check_json_target(args.json)
-    runs = load_inputs(args)
+    # read, rest detection and T/ΔT per log on the workers (--jobs, --dask-scheduler)
+    loaded = _prep.load(args, _prep.prep_from_args(args, estimator=est, keep_rows=False))
+    runs = loaded.runs  # headers: metadata, no rows
     _identity.check_vehicles(runs, pool=args.pool_vehicles)
     _identity.check_autopilot_frames(runs)
-    reports = _fitrest.rest_reports(args, runs)
+    reports = loaded.reports
     if names:
         _fitrest.refuse_motion(reports, command="fit --effects")
-    feats = _fitrest.mask_motion(_features_of(runs, est, quiet=args.quiet), reports)
+    feats = _fitrest.mask_motion(loaded.features, reports)
     groups = {device: _fitrest.drop_restless(group, file=sys.stderr)
               for device, group in _fitrest.device_groups(runs, feats).items()}
     paths = {device: conv.output_path(_fitrest.calibration_path(args.out, device, len(groups)),
@@ -101,7 +103,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
         if len(groups) > 1:
             raise ConfigError(f"--effects fits one device: these runs hold {len(groups)} "
                               f"({', '.join(repr(g) for g in groups)}); fit each apart")
-        return _fit_effects(args, est, feats, names, next(iter(gates.values())))
+        return _fit_effects(args, est, feats, names, next(iter(gates.values()))) \
+            or loaded.exit_status
     instances = _instances(runs)
     ids = {device: _identity.recorded([r for r in runs
                                        if r.metadata.get("device_id", "") == device])
@@ -115,7 +118,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
                         "calibrations": written,
                         **({k: written[0][k] for k in _SINGLE_KEYS} if len(written) == 1 else {})},
                        args.json)
-    return 0
+    return loaded.exit_status  # 2 when a log failed (the others' calibrations written)
 
 
 _SINGLE_KEYS = ("calibration", "model", "method", "coefficients_physical", "per_run",
@@ -348,6 +351,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     add_estimator_options(f)
     add_input_options(f)
     _fitrest.add_rest_options(f)
+    _pool.add_worker_options(f)
     f.set_defaults(func=cmd_fit)
 
     e = sub.add_parser("evaluate", help="score a calibration on run files (Table 2 style)")
