@@ -62,16 +62,26 @@ def test_bias_step_is_unexplained_on_temperature_where_the_step_is(
     assert 0.3 * abs(step["amplitude_dps"]) < abs(change) < 1.5 * abs(step["amplitude_dps"])
 
 
-def test_calibration_keeps_the_unexplained_correction_out_and_records_it(
+def test_calibration_deploys_the_unexplained_correction_and_records_it(
     step_runs: tuple[list[Run], dict[str, float], Diagnosis],
 ) -> None:
-    runs, _, d = step_runs
+    runs, step, d = step_runs
     cal = export_calibration(runs, d).calibration
-    assert cal.effect_names("x") == ()
-    (kept,) = cal.provenance["diagnosis"]["not_deployed"]
-    assert kept["effect"] == "unexplained"
-    assert kept["params"]["variable"] == "temperature_c"
-    assert kept["correction"]["deployable"] is False
+    assert cal.effect_names("x") == ("correction",)
+    assert cal.effect_names("y") == cal.effect_names("z") == ()
+    corr = cal.effects_of("x").correction
+    assert corr is not None and corr.variable == "temperature_c"
+    assert corr.knots[0] < STEP_C < corr.knots[-1]
+    # the deployed spline steps across the injected step, by about its size
+    change = corr.value(STEP_C + 3 * step["width_c"]) - corr.value(STEP_C - 3 * step["width_c"])
+    assert 0.5 * abs(step["amplitude_dps"]) < abs(change) < 1.5 * abs(step["amplitude_dps"])
+    assert np.sign(change) == np.sign(step["amplitude_dps"])
+    (deployed,) = cal.provenance["diagnosis"]["deployed"]
+    assert deployed["params"]["variable"] == "temperature_c"
+    assert cal.provenance["diagnosis"]["not_deployed"] == []
+    record = cal.provenance["effects_fit"]["x"]["correction"]
+    assert record["gain"] > 1.1  # held out, on the vehicle's features
+    assert record["range"] == [corr.knots[0], corr.knots[-1]]
 
 
 @pytest.mark.parametrize(("effects", "seed"), [

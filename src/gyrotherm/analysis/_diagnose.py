@@ -310,7 +310,11 @@ def export_calibration(
         "schema": SCHEMA, "axis": diagnosis.axis, "features": features, "margin": margin,
         "tau_s": diagnosis.tau_s, "tau_from_chamber": diagnosis.tau_from_chamber,
         "axes": record,
-        "not_deployed": [u.to_dict() for u in diagnosis.unexplained],
+        "deployed": [u.to_dict() for u in diagnosis.unexplained[:1]],
+        "not_deployed": [u.to_dict() for u in diagnosis.unexplained[1:]],
         "runs": [{"name": r.name, "source": r.source, "sha256": r.sha256} for r in runs]}}
+    # the first unexplained structure (the largest gain) becomes the axis' correction
+    corrections = ({diagnosis.axis: diagnosis.unexplained[0].variable}
+                   if diagnosis.unexplained else None)
     return fit_effects([estimate(r, est) for r in runs], chosen, estimator=est,
-                       provenance=provenance)
+                       provenance=provenance, corrections=corrections)

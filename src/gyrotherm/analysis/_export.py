@@ -13,6 +13,13 @@ do), averaged over 1-s blocks of time since power-on, one offset per run; the
 nonlinear parameters (time constants, the hysteresis transition) are searched
 as the diagnosis does (:meth:`Selector.evaluate` with ``search``), per axis.
 The calibrated range is that of the per-row estimates.
+
+``corrections`` (axis → variable) adds the diagnosis' ``unexplained`` structure as the
+axis' deployable ``correction`` (:mod:`gyrotherm.compensation._correction`): on the same
+1-s blocks of the vehicle's features, knots over the blocks' range of the variable
+(:func:`~._unexplained.knots_for`), values fitted to the fitted model's residuals
+(:func:`~._unexplained.two_stage`: the base coefficients and effects stay as fitted),
+and its leave-one-run-out gain recorded in the provenance.
 """
 
 from __future__ import annotations
@@ -34,7 +41,8 @@ from gyrotherm.analysis._effects import (
     direction_state,
 )
 from gyrotherm.analysis._prep import Prepared, _blocks, _mean
-from gyrotherm.analysis._score import Selector
+from gyrotherm.analysis._score import Evaluation, Selector
+from gyrotherm.analysis._unexplained import evaluate_with, knots_for, two_stage
 from gyrotherm.compensation import (
     Calibration,
     RunFeatures,
@@ -43,6 +51,7 @@ from gyrotherm.compensation import (
     get_model,
     score,
 )
+from gyrotherm.compensation._correction import Correction
 from gyrotherm.estimators import EstimatorConfig
 
 
@@ -95,15 +104,35 @@ class EffectsFit:
     heldout_rms_dps: Mapping[str, float]
 
 
+def correction_for(selector: Selector, ev: Evaluation, variable: str,
+                   *, source: str) -> tuple[Correction, dict[str, Any]]:
+    """The ``correction`` in ``variable`` on top of the fitted model ``ev`` and its record
+    (leave-one-run-out RMS without and with it, the spline fitted jointly)."""
+    knots = knots_for(selector.runs, variable)
+    values = two_stage(selector.runs, selector.residuals(ev.effects, ev.coefficients),
+                       variable, knots)
+    before = evaluate_with(selector, ev.effects, [])
+    after = evaluate_with(selector, ev.effects, [(variable, knots)])
+    corr = Correction(variable, tuple(float(k) for k in knots),
+                      tuple(float(v) for v in values), source=source)
+    return corr, {"variable": variable, "knots": len(knots),
+                  "range": [float(knots[0]), float(knots[-1])],
+                  "heldout_rms_dps": after.heldout_rms_dps,
+                  "baseline_heldout_rms_dps": before.heldout_rms_dps,
+                  "gain": before.heldout_rms_dps / after.heldout_rms_dps}
+
+
 def fit_effects(
     runs: Sequence[RunFeatures],
     effects: Mapping[str, Sequence[str]],
     *,
     estimator: EstimatorConfig,
     provenance: Mapping[str, Any] | None = None,
+    corrections: Mapping[str, str] | None = None,
 ) -> EffectsFit:
     """Fit the paper model plus ``effects[axis]`` on every axis of ``effects`` (features
-    made with ``estimator``; ≥ 2 runs: the search scores leave-one-run-out)."""
+    made with ``estimator``; ≥ 2 runs: the search scores leave-one-run-out), and the
+    ``corrections`` (axis → variable; module docstring)."""
     if len(runs) < 2:
         raise CalibrationError(f"fitting effects needs at least 2 runs (the nonlinear "
                                f"parameters are searched leave-one-run-out), got {len(runs)}")
@@ -116,6 +145,8 @@ def fit_effects(
     models: dict[str, ExtendedModel] = {}
     base_rms: dict[str, float] = {}
     rms: dict[str, float] = {}
+    corr: dict[str, Correction] = {}
+    corr_record: dict[str, dict[str, Any]] = {}
     for axis, names in effects.items():
         selector = Selector([blocks(r, axis, estimator.tau_s) for r in runs], scaling)
         search = [n for n in EFFECTS if n in names and n in TAU_GRIDS]
@@ -123,6 +154,11 @@ def fit_effects(
         base_rms[axis] = selector.evaluate({}).heldout_rms_dps
         rms[axis] = ev.heldout_rms_dps
         models[axis] = selector.model(ev)
+        if corrections and axis in corrections:
+            corr[axis], corr_record[axis] = correction_for(
+                selector, ev, corrections[axis],
+                source=f"unexplained structure of the diagnosis, axis {axis}: linear spline "
+                       "fitted to the calibration's residuals (1-s blocks)")
     t = np.concatenate([r.temperature_c for r in runs])
     d = np.concatenate([r.delta_t_c for r in runs])
     record = {
@@ -132,7 +168,9 @@ def fit_effects(
         "effects_fit": {a: {"effects": [n for n in EFFECTS if n in effects[a]],
                             "heldout_rms_dps": rms[a],
                             "baseline_heldout_rms_dps": base_rms[a],
-                            "gain": base_rms[a] / rms[a]} for a in effects},
+                            "gain": base_rms[a] / rms[a],
+                            **({"correction": corr_record[a]} if a in corr_record else {})}
+                         for a in effects},
         "fit_time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "gyrotherm_version": __version__,
         **(provenance or {}),
@@ -141,9 +179,12 @@ def fit_effects(
         models, estimator=estimator,
         valid_range=ValidRange(float(t.min()), float(t.max()), float(d.min()), float(d.max())),
         t_on_max_s=max(float(r.time_s[-1]) for r in runs), provenance=record)
-    residuals = {s.axis + ":" + s.run: s.compensated.to_dict()
-                 for r in runs for s in score(cal, r)}
     from dataclasses import replace
 
+    if corr:
+        cal = replace(cal, effects={**cal.effects, **{
+            a: replace(cal.effects_of(a), correction=c) for a, c in corr.items()}})
+    residuals = {s.axis + ":" + s.run: s.compensated.to_dict()
+                 for r in runs for s in score(cal, r)}
     cal = replace(cal, provenance={**cal.provenance, "residuals": residuals})
     return EffectsFit(cal, models, base_rms, rms)

@@ -136,7 +136,8 @@ def write_report(d: Diagnosis, directory: str | Path) -> Path:
     for u in d.unexplained:
         lines += [f"### unexplained: {u.variable} in [{u.where[0]:.4g}, {u.where[1]:.4g}]", "",
                   "- structure no catalogued effect explains; its linear-spline correction is "
-                  "not deployable (kept out of the extended model and of --calibration)",
+                  "deployed by --calibration as the axis' `correction` (the first such "
+                  "structure; refitted on the vehicle's estimator features)",
                   f"- held-out RMS with the correction: {_fmt(u.heldout_rms_dps)} °/s "
                   f"(gain {u.gain:.3f})", f"- evidence: {u.evidence}", ""]
     lines += ["", "## Effects tried on the baseline", "",

@@ -68,7 +68,7 @@ class Unexplained:
                 "evidence": self.evidence,
                 "correction": {"kind": "linear spline", "knots": list(self.knots),
                                "values_dps": list(self.correction_dps),
-                               "deployable": False}}
+                               "deployable": True}}
 
 
 def variable(p: Prepared, name: str) -> FloatArray:

@@ -6,7 +6,10 @@ Version 2 is version 1 plus (docs/model.md §6):
 * ``effects.<axis>.<effect>.<parameter>``: every axis of ``coefficients``, each
   an object (empty: the paper polynomial alone) of effects in
   :meth:`~gyrotherm.compensation._effects.Effects.to_params` layout, e.g.
-  ``{"hysteresis": {"amplitude_dps": 0.05, "transition_c": 0.4}}``;
+  ``{"hysteresis": {"amplitude_dps": 0.05, "transition_c": 0.4}}``; the
+  ``correction`` effect (:mod:`~gyrotherm.compensation._correction`) is
+  ``{"variable": "temperature_c", "knots": [...], "values_dps": [...],
+  "source": "..."}`` (a linear spline, constant beyond its first and last knot);
 * ``runtime_state``: ``{"version": 1, "per": "axis", "fields": [...]}``, the
   layout of :class:`~gyrotherm.compensation._effects_state.EffectsState` the
   effects need at run time (one per axis, starting at power-on).
@@ -23,6 +26,7 @@ from dataclasses import MISSING, fields
 from typing import Any
 
 from gyrotherm._errors import CalibrationError
+from gyrotherm.compensation._correction import Correction
 from gyrotherm.compensation._effects import _KINDS, Effects
 from gyrotherm.compensation._effects_state import STATE_VERSION, EffectsState
 
@@ -65,9 +69,11 @@ def parse_effects(node: Any, axes: tuple[str, ...], source: str) -> dict[str, Ef
         if not isinstance(per_axis, dict):
             raise CalibrationError(f"{source}: field 'effects.{axis}': expected an object, "
                                    f"got {per_axis!r:.60}")
-        params: dict[str, dict[str, float | None]] = {}
+        params: dict[str, dict[str, Any]] = {}
         for name, values in per_axis.items():
-            params[name] = _parse_effect(values, f"effects.{axis}.{name}", name, source)
+            path = f"effects.{axis}.{name}"
+            params[name] = (_parse_correction(values, path, source) if name == "correction"
+                            else _parse_effect(values, path, name, source))
         effects = Effects.from_params(params)
         if effects.names:
             out[axis] = effects
@@ -103,6 +109,28 @@ def _parse_effect(values: Any, path: str, name: str, source: str) -> dict[str, f
             raise CalibrationError(f"{source}: field {where!r}: must be > 0, got {v!r}")
         out[key] = v
     return out
+
+
+def _parse_correction(values: Any, path: str, source: str) -> dict[str, Any]:
+    """The ``correction`` block, checked by :class:`Correction` (errors name the field)."""
+    if not isinstance(values, dict):
+        raise CalibrationError(f"{source}: field {path!r}: expected an object, "
+                               f"got {values!r:.60}")
+    known = ("variable", "knots", "values_dps", "source")
+    extra = sorted(set(values) - set(known))
+    if extra:
+        raise CalibrationError(f"{source}: field '{path}.{extra[0]}': unknown parameter; "
+                               f"correction has {list(known)}")
+    for key in known[:3]:
+        if key not in values:
+            raise CalibrationError(f"{source}: missing field '{path}.{key}'")
+    try:
+        Correction(**values)
+    except CalibrationError as exc:
+        raise CalibrationError(f"{source}: field {path!r}: {exc}") from exc
+    except TypeError as exc:  # a variable that is not text, and the like
+        raise CalibrationError(f"{source}: field {path!r}: {exc}") from exc
+    return dict(values)
 
 
 def parse_runtime_state(node: Any, source: str) -> None:

@@ -25,6 +25,10 @@ on its own, time constants included. Per accepted sample k (dt_k = t_k − t_(k�
   t_k − t_on,k, kept so that a restarted caller can go on counting t_on.
 * ``cubic`` (c, T_ref): bias += c·(T_s − T_ref)³;
   ``gradient_quadratic`` (c): bias += c·ΔT². Stateless.
+* ``correction`` (variable v, knots, values): bias += the linear spline of the values
+  at the knots in v ∈ {T, ΔT (the estimator's, unclamped), t_on}, constant beyond
+  the first and last knot (:mod:`._correction`: the diagnosis' ``unexplained``
+  structure, deployed). Stateless.
 * ``drift`` (s): bias += s·min(t_on, t_on_max)/3600, compensated from power-on
   as the diagnosis fits it. Open decision: a drift that is ageing rather than a
   per-power-on ramp would be extrapolated from the calibration date (wall-clock
@@ -58,6 +62,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gyrotherm._errors import CalibrationError
+from gyrotherm.compensation._correction import Correction
 from gyrotherm.compensation._effects_state import (
     EffectFlags,
     EffectsOutput,
@@ -147,6 +152,7 @@ class Drift(_Params):
 _KINDS: dict[str, type] = {
     "thermal_lag": ThermalLag, "hysteresis": Hysteresis, "warmup": Warmup,
     "cubic": Cubic, "gradient_quadratic": GradientQuadratic, "drift": Drift,
+    "correction": Correction,
 }
 
 
@@ -160,6 +166,7 @@ class Effects:
     cubic: Cubic | None = None
     gradient_quadratic: GradientQuadratic | None = None
     drift: Drift | None = None
+    correction: Correction | None = None
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -167,7 +174,7 @@ class Effects:
 
     @classmethod
     def from_params(
-        cls, params: Mapping[str, Mapping[str, float | None]], *, t_ref_c: float | None = None
+        cls, params: Mapping[str, Mapping[str, Any]], *, t_ref_c: float | None = None
     ) -> Effects:
         """From ``{effect: {parameter: value}}`` (:meth:`ExtendedModel.params` layout);
         ``t_ref_c`` fills a ``cubic`` without one (the model's scaling.t_ref_c)."""
@@ -187,9 +194,12 @@ class Effects:
                                        f"expected {want}") from exc
         return cls(**out)
 
-    def to_params(self) -> dict[str, dict[str, float | None]]:
-        """Inverse of :meth:`from_params`."""
-        return {n: asdict(getattr(self, n)) for n in self.names}
+    def to_params(self) -> dict[str, dict[str, Any]]:
+        """Inverse of :meth:`from_params` (a correction's knots and values as lists)."""
+        out = {n: asdict(getattr(self, n)) for n in self.names}
+        if self.correction is not None:
+            out["correction"] = self.correction.to_dict()
+        return out
 
 
 _NO_OUTPUT = EffectsOutput(math.nan, math.nan, 0.0, 0)
@@ -276,6 +286,10 @@ class EffectsKernel:
             bias += e.cubic.coefficient_dps_per_c3 * (tc - e.cubic.t_ref_c) ** 3
         if e.gradient_quadratic is not None:
             bias += e.gradient_quadratic.coefficient_dps_per_c2 * dc * dc
+        if e.correction is not None:
+            c = e.correction
+            bias += c.value(temperature_c if c.variable == "temperature_c" else
+                            delta_t_c if c.variable == "delta_t_c" else t_on)
         if e.drift is not None:
             top = e.drift.t_on_max_s
             if top is not None and t_on > top:

@@ -21,6 +21,7 @@ base polynomial       max over a 65 × 65 grid of the valid T × ΔT box (+ corn
 ``gradient_quadratic`` \\|c\\|·max(dt_min², dt_max²) (ΔT̂ clamped)
 ``drift``             \\|s\\|·t_on_max/3600 (no ``t_on_max_s``: at
                       :data:`DRIFT_HORIZON_S`, one day since power-on)
+``correction``        max \\|values_dps\\| (a linear spline between its knots)
 ====================  ===========================================================
 
 Each part alone, and their sum per axis (the worst case of all reached together),
@@ -103,6 +104,8 @@ def _effect_parts(cal: Calibration, axis: str, e: Effects) -> list[tuple[str, st
         parts.append(("gradient_quadratic", "coefficient_dps_per_c2",
                       abs(e.gradient_quadratic.coefficient_dps_per_c2) * reach**2,
                       f"|c|·{reach:g}² (°C, ΔT clamped to the range)"))
+    if e.correction is not None:
+        parts.append(("correction", "values_dps", e.correction.max_abs_dps, "max |values|"))
     if e.drift is not None:
         top = e.drift.t_on_max_s
         if top is not None and top > T_ON_MAX_LIMIT_S:
