@@ -111,3 +111,16 @@ def test_kernel_adds_the_correction_in_its_variable(variable: str) -> None:
     assert series.bias_dps.tolist() == [corr.value({"temperature_c": r[1], "delta_t_c": r[2],
                                          "time_since_power_on_s": r[3]}[variable])
                                          for r in rows]
+
+
+def test_autopilot_steady_state_includes_a_correction_in_temperature(paper: Calibration) -> None:
+    from gyrotherm.cli._export import steady_state_bias
+
+    temps = np.array([-50.0, 5.0, 15.0, 25.0, 90.0])  # below, inside, above the knots
+    plain = steady_state_bias(paper, "x", temps)
+    with_t = steady_state_bias(_with(paper, CORR), "x", temps)
+    assert with_t - plain == pytest.approx([CORR.value(t) for t in temps.tolist()])
+    in_dt = Correction("delta_t_c", (-1.0, 1.0), (0.2, 0.4))
+    assert steady_state_bias(_with(paper, in_dt), "x", temps) - plain == pytest.approx(0.3)
+    in_time = Correction("time_since_power_on_s", (0.0, 600.0), (0.2, 0.0))
+    assert steady_state_bias(_with(paper, in_time), "x", temps) == pytest.approx(plain)

@@ -118,13 +118,19 @@ _GRID = 256
 
 def steady_state_bias(cal: Calibration, axis: str, temperature_c: np.ndarray) -> np.ndarray:
     """The calibration's bias at ΔT = 0 (°/s): the base polynomial (clamped to its range)
-    plus a ``cubic`` effect; the time-dependent effects (warm-up, drift, hysteresis) have
-    no place in a steady state."""
+    plus a ``cubic`` effect and a ``correction`` in T (at T) or ΔT (at ΔT = 0); the
+    time-dependent effects (warm-up, drift, hysteresis, a correction in t_on) have no place
+    in a steady state."""
     t, d, _, _ = cal.clamp(temperature_c, np.zeros_like(temperature_c))
     bias = cal.base_series(axis, t, d)
-    cubic = cal.effects_of(axis).cubic
+    effects = cal.effects_of(axis)
+    cubic = effects.cubic
     if cubic is not None:
         bias = bias + cubic.coefficient_dps_per_c3 * (t - cubic.t_ref_c) ** 3
+    corr = effects.correction
+    if corr is not None and corr.variable in ("temperature_c", "delta_t_c"):
+        at = temperature_c if corr.variable == "temperature_c" else np.zeros_like(t)
+        bias = bias + np.interp(at, corr.knots, corr.values_dps)  # constant beyond the knots
     return np.asarray(bias, dtype=np.float64)
 
 
