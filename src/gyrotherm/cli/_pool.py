@@ -133,7 +133,7 @@ def _dask_map(fn: Callable[[str], T], paths: Sequence[str], address: str,
     try:
         futures = client.map(fn, list(paths), pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
-        for done, fut in enumerate(as_completed(futures), 1):
+        for done, fut in enumerate(as_completed(futures, loop=client.loop), 1):
             i = index[fut.key]
             try:
                 results[i] = fut.result()
