@@ -1,0 +1,251 @@
+"""Learning in the field: the paper model from ordinary power-ons, no chamber.
+
+Every power-on of a vehicle at rest is a small chamber run: the die warms from the
+ambient temperature A towards A + self-heating, so T rises while ΔT decays. Within one
+warm-up T and ΔT move together (T ≈ A + S − ΔT at constant ambient), which is why the
+autopilots' one-warm-up learners (ArduPilot ``INS_TCALn_ENABLE = 2``, PX4
+``SYS_CAL_GYRO``) can only fit T alone. Across warm-ups that start from *different*
+ambients the two separate, and the paper model F = a1·T² + a2·T + a3·ΔT + a4·T·ΔT + a5
+becomes identifiable.
+
+**Sufficient statistics, bounded memory.** Per power-on k and its rest rows i of the
+warm-up (the estimator's T̂, ΔT̂; :func:`warmup_rows`), with the fixed centred basis
+z = [x², x, g, x·g], x = (T̂ − 25 °C)/30 °C, g = ΔT̂/5 °C (:data:`LEARN_SCALING`), and
+per axis the rate y: n, Σz, Σzzᵀ, and per axis Σy, Σzy, Σy² (:class:`WarmupStats`: 4 + 10
+numbers plus 6 per axis, whatever the warm-up's length). Each power-on has its own
+switch-on offset, so the slopes come from the *within*-warm-up cross-products
+(S_k = Σzzᵀ − ΣzΣzᵀ/n, s_k = Σzy − ΣzΣy/n): β = (Σ_k S_k)⁻¹ Σ_k s_k; the intercept a5
+is the mean offset Σ_k(Σy − Σzᵀβ)/Σ_k n (the boot-time zero removes each boot's own).
+
+**Validation before adoption** (:func:`decide`): leave-one-power-on-out, from the same
+statistics (β₋ₖ = (S − S_k)⁻¹(s − s_k); SSE_k = Syy_k − 2β₋ₖᵀs_k + β₋ₖᵀS_kβ₋ₖ), the
+candidate's RMS on warm-ups it did not see against the current calibration's RMS on the
+same warm-ups (``none``: no compensation). Adopted only when every gate passes
+(:data:`GATES`: warm-ups, spread of the ambients they started from, conditioning) and the
+candidate beats the current one by :data:`ADOPT_MARGIN` on every axis; otherwise the
+reasons are said and learning goes on.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from gyrotherm._errors import CalibrationError
+from gyrotherm.compensation._calibration import Calibration, ValidRange
+from gyrotherm.compensation._fit import RunFeatures
+from gyrotherm.compensation._models import Scaling, get_model
+from gyrotherm.estimators import EstimatorConfig
+
+FloatArray = NDArray[np.float64]
+
+LEARN_SCALING = Scaling(t_ref_c=25.0, t_scale_c=30.0, dt_scale_c=5.0)
+K = 4  # slope terms: x², x, g, x·g (the paper model's order, intercept last)
+#: Rows of a warm-up used: after SETTLE_S (the estimator's ΔT converging) and at most
+#: WARMUP_MAX_S after power-on, at rest, until the first row in motion.
+SETTLE_S = 10.0
+WARMUP_MAX_S = 1800.0
+MIN_ROWS = 60
+#: Named adoption gates (thresholds in the names' units).
+GATES = {"min_warmups": 3, "min_start_span_c": 8.0, "max_condition": 1e8}
+ADOPT_MARGIN = 0.10
+"""The candidate's held-out RMS must be ≤ (1 − margin) × the current one's, every axis."""
+
+
+def _z(temperature_c: FloatArray, delta_t_c: FloatArray) -> FloatArray:
+    x, g = LEARN_SCALING.centre(temperature_c, delta_t_c)
+    return np.column_stack([x * x, x, g, x * g])
+
+
+def warmup_rows(f: RunFeatures) -> NDArray[np.bool_]:
+    """The warm-up at rest: rows from SETTLE_S to WARMUP_MAX_S after the run's start
+    (power-on), up to the first row not at rest (``f.rest``), with finite T̂ and ΔT̂."""
+    t = f.time_s - f.time_s[0]
+    ok = (t >= SETTLE_S) & (t <= WARMUP_MAX_S)
+    ok &= np.isfinite(f.temperature_c) & np.isfinite(f.delta_t_c)
+    if f.rest is not None:
+        moving = np.flatnonzero(~f.rest)
+        if len(moving):
+            ok[moving[0]:] = False
+    return np.asarray(ok, dtype=np.bool_)
+
+
+@dataclass(frozen=True)
+class WarmupStats:
+    """One power-on's sufficient statistics (module docstring)."""
+
+    name: str
+    n: int
+    start_c: float
+    """T̂ at the first row used: the ambient the warm-up started from, roughly."""
+    t_range_c: tuple[float, float]
+    dt_range_c: tuple[float, float]
+    sz: tuple[float, ...]
+    szz: tuple[float, ...]  # K×K, row-major
+    sy: Mapping[str, float]
+    szy: Mapping[str, tuple[float, ...]]
+    syy: Mapping[str, float]
+
+    @classmethod
+    def from_features(cls, f: RunFeatures, rows: NDArray[np.bool_] | None = None) -> WarmupStats:
+        """The statistics of ``f``'s warm-up rows (:func:`warmup_rows` by default)."""
+        use = warmup_rows(f) if rows is None else rows
+        n = int(use.sum())
+        if n < MIN_ROWS:
+            raise CalibrationError(f"{f.source}: {f.name}: {n} warm-up rows at rest "
+                                   f"(at least {MIN_ROWS} needed)")
+        temp, dtemp = f.temperature_c[use], f.delta_t_c[use]
+        z = _z(temp, dtemp)
+        ys = {a: np.asarray(r[use], dtype=np.float64) for a, r in f.rates_dps.items()}
+        return cls(name=f.name, n=n, start_c=float(temp[0]),
+                   t_range_c=(float(temp.min()), float(temp.max())),
+                   dt_range_c=(float(dtemp.min()), float(dtemp.max())),
+                   sz=tuple(z.sum(axis=0).tolist()), szz=tuple((z.T @ z).ravel().tolist()),
+                   sy={a: float(y.sum()) for a, y in ys.items()},
+                   szy={a: tuple((z.T @ y).tolist()) for a, y in ys.items()},
+                   syy={a: float(y @ y) for a, y in ys.items()})
+
+    def within(self, axis: str) -> tuple[FloatArray, FloatArray, float]:
+        """(S, s, Syy): the within-warm-up cross-products of ``axis``."""
+        sz = np.array(self.sz)
+        s_zz = np.array(self.szz).reshape(K, K) - np.outer(sz, sz) / self.n
+        s_zy = np.array(self.szy[axis]) - sz * self.sy[axis] / self.n
+        return s_zz, s_zy, self.syy[axis] - self.sy[axis] ** 2 / self.n
+
+    def sse(self, axis: str, beta: FloatArray) -> float:
+        """Within-warm-up residual sum of squares of slopes ``beta`` (its own offset)."""
+        s_zz, s_zy, s_yy = self.within(axis)
+        return max(float(s_yy - 2.0 * beta @ s_zy + beta @ s_zz @ beta), 0.0)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "n": self.n, "start_c": self.start_c,
+                "t_range_c": list(self.t_range_c), "dt_range_c": list(self.dt_range_c),
+                "sz": list(self.sz), "szz": list(self.szz), "sy": dict(self.sy),
+                "szy": {a: list(v) for a, v in self.szy.items()}, "syy": dict(self.syy)}
+
+
+def slopes(stats: Sequence[WarmupStats], axis: str) -> tuple[FloatArray, float]:
+    """β (4 slopes, LEARN_SCALING basis) pooled within warm-ups, and the condition number
+    of the pooled cross-product (columns scaled to unit diagonal)."""
+    s_zz = sum((w.within(axis)[0] for w in stats), np.zeros((K, K)))
+    s_zy = sum((w.within(axis)[1] for w in stats), np.zeros(K))
+    d = np.sqrt(np.maximum(np.diag(s_zz), 1e-300))
+    a = s_zz / np.outer(d, d)
+    cond = float(np.linalg.cond(a)) if np.all(np.isfinite(a)) else math.inf
+    beta, *_ = np.linalg.lstsq(a, s_zy / d, rcond=1e-12)
+    return np.asarray(beta / d, dtype=np.float64), cond
+
+
+def intercept(stats: Sequence[WarmupStats], axis: str, beta: FloatArray) -> float:
+    """The mean switch-on offset under slopes ``beta`` (°/s): the calibration's a5."""
+    total = sum(w.sy[axis] - float(np.array(w.sz) @ beta) for w in stats)
+    return total / sum(w.n for w in stats)
+
+
+def basis_slopes(cal: Calibration | None, axis: str) -> FloatArray:
+    """A paper calibration's slopes in LEARN_SCALING's basis (the same polynomial space:
+    exact up to rounding); zeros for ``None`` (no compensation)."""
+    if cal is None:
+        return np.zeros(K)
+    if cal.model.name != "paper":
+        raise CalibrationError(f"learning compares against a paper-model calibration, "
+                               f"not {cal.model.name!r}")
+    grid_t, grid_d = np.meshgrid(np.linspace(-20.0, 70.0, 5), np.linspace(-10.0, 10.0, 5))
+    t, d = grid_t.ravel(), grid_d.ravel()
+    y = cal.base_series(axis, t, d)  # unclamped polynomial (base_series does not clamp)
+    z = np.column_stack([_z(t, d), np.ones(len(t))])
+    coef, *_ = np.linalg.lstsq(z, y, rcond=None)
+    return np.asarray(coef[:K], dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class Decision:
+    """What :func:`decide` found: adopt or not, why, and the validation figures."""
+
+    adopt: bool
+    reasons: tuple[str, ...]
+    warmups: int
+    start_span_c: float
+    condition: float
+    candidate_rms_dps: Mapping[str, float] = field(default_factory=dict)
+    current_rms_dps: Mapping[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"adopt": self.adopt, "reasons": list(self.reasons), "warmups": self.warmups,
+                "start_span_c": self.start_span_c, "condition": self.condition,
+                "candidate_heldout_rms_dps": dict(self.candidate_rms_dps),
+                "current_heldout_rms_dps": dict(self.current_rms_dps)}
+
+
+def heldout_rms(stats: Sequence[WarmupStats], axis: str,
+                fixed: FloatArray | None = None) -> float:
+    """RMS on each warm-up of slopes fitted without it (``fixed``: the same slopes for
+    every warm-up, a calibration learnt elsewhere), offsets removed per warm-up."""
+    sse = 0.0
+    for k, w in enumerate(stats):
+        beta = fixed if fixed is not None else slopes(
+            [s for j, s in enumerate(stats) if j != k], axis)[0]
+        sse += w.sse(axis, beta)
+    return math.sqrt(sse / sum(w.n for w in stats))
+
+
+def decide(stats: Sequence[WarmupStats], current: Calibration | None,
+           axes: Sequence[str], *, margin: float = ADOPT_MARGIN) -> Decision:
+    """Whether the calibration learnt from ``stats`` should replace ``current``."""
+    reasons: list[str] = []
+    span = (max(w.start_c for w in stats) - min(w.start_c for w in stats)) if stats else 0.0
+    if len(stats) < GATES["min_warmups"]:
+        reasons.append(f"warm-ups: {len(stats)} at rest, at least {GATES['min_warmups']:g} "
+                       "needed (one is held out at a time)")
+    if span < GATES["min_start_span_c"]:
+        reasons.append(f"start temperatures span {span:.1f} °C, at least "
+                       f"{GATES['min_start_span_c']:g} °C needed (T and ΔT move together "
+                       "within one warm-up; only different ambients separate them)")
+    if reasons:
+        return Decision(False, tuple(reasons), len(stats), span, math.inf)
+    cond = max(slopes(stats, a)[1] for a in axes)
+    if not cond <= GATES["max_condition"]:
+        return Decision(False, (f"conditioning: {cond:.3g} > {GATES['max_condition']:g}",),
+                        len(stats), span, cond)
+    cand = {a: heldout_rms(stats, a) for a in axes}
+    cur = {a: heldout_rms(stats, a, basis_slopes(current, a)) for a in axes}
+    worse = [a for a in axes if not cand[a] <= (1.0 - margin) * cur[a]]
+    if worse:
+        reasons.append("held-out warm-ups: the candidate is not better by "
+                       f"{100 * margin:g} % on axes {', '.join(worse)} (" + ", ".join(
+                           f"{a}: {cand[a]:.4g} vs {cur[a]:.4g} °/s" for a in worse) + ")")
+    else:
+        reasons.append("held-out warm-ups: better on every axis (" + ", ".join(
+            f"{a}: {cand[a]:.4g} vs {cur[a]:.4g} °/s" for a in axes) + ")")
+    return Decision(not worse, tuple(reasons), len(stats), span, cond, cand, cur)
+
+
+def learnt_calibration(stats: Sequence[WarmupStats], axes: Sequence[str], *,
+                       estimator: EstimatorConfig, decision: Decision | None = None,
+                       provenance: Mapping[str, Any] | None = None) -> Calibration:
+    """The paper-model calibration the warm-ups give (LEARN_SCALING), with provenance:
+    the power-ons used, the temperature coverage, the validation figures."""
+    coefficients: dict[str, tuple[float, ...]] = {}
+    for a in axes:
+        beta = slopes(stats, a)[0]
+        coefficients[a] = (*(float(b) for b in beta), float(intercept(stats, a, beta)))
+    rng = ValidRange(min(w.t_range_c[0] for w in stats), max(w.t_range_c[1] for w in stats),
+                     min(w.dt_range_c[0] for w in stats), max(w.dt_range_c[1] for w in stats))
+    record = {"method": "learnt from warm-ups at rest, one offset per power-on",
+              "power_ons": [{"name": w.name, "rows": w.n, "start_c": w.start_c,
+                             "t_range_c": list(w.t_range_c)} for w in stats],
+              "coverage_c": [rng.t_min_c, rng.t_max_c],
+              **({"validation": decision.to_dict()} if decision else {}),
+              **(provenance or {})}
+    return Calibration(model=get_model("paper"), scaling=LEARN_SCALING,
+                       coefficients=coefficients, valid_range=rng, estimator=estimator,
+                       provenance=record)
+
+
+__all__ = ["ADOPT_MARGIN", "GATES", "LEARN_SCALING", "Decision", "WarmupStats", "decide",
+           "heldout_rms", "learnt_calibration", "warmup_rows"]
