@@ -31,7 +31,7 @@ def build_parser(*, run_only: bool = False) -> argparse.ArgumentParser:
     if run_only:
         _run.register(sub)
         return _conventions.apply(parser)
-    from gyrotherm.cli import _demo, _diagnose, _export, _fleet, _import, _offline
+    from gyrotherm.cli import _demo, _diagnose, _export, _fleet, _import, _learn, _offline
 
     _offline.register(sub)
     _run.register(sub)
@@ -40,6 +40,7 @@ def build_parser(*, run_only: bool = False) -> argparse.ArgumentParser:
     _import.register(sub)
     _export.register(sub)
     _fleet.register(sub)
+    _learn.register(sub)
     sub.add_parser("listen", help="live view of a sensor's Zenoh stream (see: listen --help)")
     sub.add_parser("record", help="record to MCAP (ROS 2 Imu) / serve Foxglove / "
                    "publish over rmw_zenoh (record --help)")

@@ -51,6 +51,8 @@ K = 4  # slope terms: x², x, g, x·g (the paper model's order, intercept last)
 SETTLE_S = 10.0
 WARMUP_MAX_S = 1800.0
 MIN_ROWS = 60
+#: A log whose first row is later than this after power-on has lost its warm-up's start.
+MAX_START_S = 60.0
 #: Named adoption gates (thresholds in the names' units).
 GATES = {"min_warmups": 3, "min_start_span_c": 8.0, "max_condition": 1e8}
 ADOPT_MARGIN = 0.10
@@ -63,9 +65,10 @@ def _z(temperature_c: FloatArray, delta_t_c: FloatArray) -> FloatArray:
 
 
 def warmup_rows(f: RunFeatures) -> NDArray[np.bool_]:
-    """The warm-up at rest: rows from SETTLE_S to WARMUP_MAX_S after the run's start
-    (power-on), up to the first row not at rest (``f.rest``), with finite T̂ and ΔT̂."""
-    t = f.time_s - f.time_s[0]
+    """The warm-up at rest: rows from SETTLE_S to WARMUP_MAX_S after power-on (``time_s``
+    counts from power-on: the simulator's runs, PX4's and ArduPilot's time since boot),
+    up to the first row not at rest (``f.rest``), with finite T̂ and ΔT̂."""
+    t = f.time_s
     ok = (t >= SETTLE_S) & (t <= WARMUP_MAX_S)
     ok &= np.isfinite(f.temperature_c) & np.isfinite(f.delta_t_c)
     if f.rest is not None:
@@ -94,11 +97,24 @@ class WarmupStats:
     @classmethod
     def from_features(cls, f: RunFeatures, rows: NDArray[np.bool_] | None = None) -> WarmupStats:
         """The statistics of ``f``'s warm-up rows (:func:`warmup_rows` by default)."""
+        if not f.time_s[0] <= MAX_START_S:
+            raise CalibrationError(
+                f"{f.source}: {f.name}: the log starts {f.time_s[0]:.0f} s after power-on "
+                f"(time since boot), more than {MAX_START_S:g} s: its warm-up is not in it. "
+                "Log from boot: PX4 SDLOG_MODE = 1 or 2, ArduPilot LOG_DISARMED = 1 (a time "
+                "base that is not time since boot, such as ROS stamps, cannot be used)")
         use = warmup_rows(f) if rows is None else rows
         n = int(use.sum())
         if n < MIN_ROWS:
-            raise CalibrationError(f"{f.source}: {f.name}: {n} warm-up rows at rest "
-                                   f"(at least {MIN_ROWS} needed)")
+            span = float(f.time_s[-1] - f.time_s[0]) if len(f.time_s) else 0.0
+            rate = (len(f.time_s) - 1) / span if span > 0 else 0.0
+            raise CalibrationError(
+                f"{f.source}: {f.name}: {n} warm-up rows at rest (at least {MIN_ROWS} "
+                f"needed: from {SETTLE_S:g} s after power-on, at rest, before the first "
+                f"motion); the log has {len(f.time_s)} rows over {span:.0f} s "
+                f"({rate:.3g} Hz) from {f.time_s[0]:.0f} s after power-on. Log the gyro "
+                "faster (PX4: SDLOG_PROFILE 'thermal calibration') and keep the vehicle "
+                "still for its first minutes")
         temp, dtemp = f.temperature_c[use], f.delta_t_c[use]
         z = _z(temp, dtemp)
         ys = {a: np.asarray(r[use], dtype=np.float64) for a, r in f.rates_dps.items()}
