@@ -137,3 +137,25 @@ def test_learnt_beats_no_compensation_but_not_a_chamber_it_never_saw() -> None:
     held = [WarmupStats.from_features(features(r, EST)) for r in life(4, seed=6)]
     assert heldout_rms(held, "x", basis_slopes(cham, "x")) < 0.5 * heldout_rms(
         held, "x", basis_slopes(None, "x"))
+
+
+def test_white_noise_estimate_is_the_simulators(feats: list[RunFeatures]) -> None:
+    from gyrotherm.compensation._learn import noise_var
+
+    stats = [WarmupStats.from_features(f) for f in feats[:5]]
+    sigma = LIFE_GYRO.arw_deg_per_rth / 60.0 * math.sqrt(10.0)  # N/60·√rate at 10 Hz, °/s
+    for a in AXES:
+        assert math.sqrt(noise_var(stats, a)) == pytest.approx(sigma, rel=0.03)
+
+
+def test_an_axis_without_thermal_bias_is_not_adopted_the_others_are() -> None:
+    from gyrotherm.sim import DEFAULT_TRUE_BIAS, BiasTruth
+
+    flat_z = {**DEFAULT_TRUE_BIAS, "z": {k: 0.0 for k in DEFAULT_TRUE_BIAS["z"]}}
+    gyro = replace(LIFE_GYRO, bias=BiasTruth(coefficients=flat_z))
+    stats = [WarmupStats.from_features(features(r, EST)) for r in life(8, seed=12, gyro=gyro)]
+    d = decide(stats, None, AXES)
+    assert d.axes_adopted == ("x", "y")
+    assert "not better than no compensation by 10 % on z" in d.reasons[-1]
+    cal = learnt_calibration(stats, AXES, estimator=EST, decision=d)
+    assert cal.coefficients["z"] == (0.0,) * 5

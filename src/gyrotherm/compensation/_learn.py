@@ -20,10 +20,17 @@ is the mean offset Σ_k(Σy − Σzᵀβ)/Σ_k n (the boot-time zero removes eac
 **Validation before adoption** (:func:`decide`): leave-one-power-on-out, from the same
 statistics (β₋ₖ = (S − S_k)⁻¹(s − s_k); SSE_k = Syy_k − 2β₋ₖᵀs_k + β₋ₖᵀS_kβ₋ₖ), the
 candidate's RMS on warm-ups it did not see against the current calibration's RMS on the
-same warm-ups (``none``: no compensation). Adopted only when every gate passes
+same warm-ups (``none``: no compensation), both with the white noise taken out: the rate
+noise σ² is estimated from successive differences (Σ(y_i − y_(i−1))²/2 per pair of
+consecutive rows, one more number per axis), and the *bias error* RMS is
+√max(SSE/n − σ², 0). On the raw residual a 10 % margin could never be met by a gyro whose
+thermal bias moves less than half its per-sample noise. Adopted only when every gate passes
 (:data:`GATES`: warm-ups, spread of the ambients they started from, conditioning) and the
-candidate beats the current one by :data:`ADOPT_MARGIN` on every axis; otherwise the
-reasons are said and learning goes on.
+candidate beats the current one by :data:`ADOPT_MARGIN`: on every axis when there is a
+current calibration (its ranges and the learnt ones cannot be mixed in one file); per axis
+when there is none (an axis whose thermal bias is below the gyro's bias instability is
+left uncompensated, the others adopted); otherwise the reasons are said and learning goes
+on.
 """
 
 from __future__ import annotations
@@ -93,6 +100,9 @@ class WarmupStats:
     sy: Mapping[str, float]
     szy: Mapping[str, tuple[float, ...]]
     syy: Mapping[str, float]
+    sdd: Mapping[str, float]
+    """Σ (y_i − y_(i−1))² over consecutive rows used (the white-noise estimate)."""
+    ndd: int
 
     @classmethod
     def from_features(cls, f: RunFeatures, rows: NDArray[np.bool_] | None = None) -> WarmupStats:
@@ -118,13 +128,18 @@ class WarmupStats:
         temp, dtemp = f.temperature_c[use], f.delta_t_c[use]
         z = _z(temp, dtemp)
         ys = {a: np.asarray(r[use], dtype=np.float64) for a, r in f.rates_dps.items()}
+        idx = np.flatnonzero(use)
+        pairs = np.flatnonzero(np.diff(idx) == 1)  # consecutive rows both used
+        dds = {a: float(np.sum(np.diff(np.asarray(r, dtype=np.float64)[idx])[pairs] ** 2))
+               for a, r in f.rates_dps.items()}
         return cls(name=f.name, n=n, start_c=float(temp[0]),
                    t_range_c=(float(temp.min()), float(temp.max())),
                    dt_range_c=(float(dtemp.min()), float(dtemp.max())),
                    sz=tuple(z.sum(axis=0).tolist()), szz=tuple((z.T @ z).ravel().tolist()),
                    sy={a: float(y.sum()) for a, y in ys.items()},
                    szy={a: tuple((z.T @ y).tolist()) for a, y in ys.items()},
-                   syy={a: float(y @ y) for a, y in ys.items()})
+                   syy={a: float(y @ y) for a, y in ys.items()},
+                   sdd=dds, ndd=len(pairs))
 
     def within(self, axis: str) -> tuple[FloatArray, FloatArray, float]:
         """(S, s, Syy): the within-warm-up cross-products of ``axis``."""
@@ -142,7 +157,8 @@ class WarmupStats:
         return {"name": self.name, "n": self.n, "start_c": self.start_c,
                 "t_range_c": list(self.t_range_c), "dt_range_c": list(self.dt_range_c),
                 "sz": list(self.sz), "szz": list(self.szz), "sy": dict(self.sy),
-                "szy": {a: list(v) for a, v in self.szy.items()}, "syy": dict(self.syy)}
+                "szy": {a: list(v) for a, v in self.szy.items()}, "syy": dict(self.syy),
+                "sdd": dict(self.sdd), "ndd": self.ndd}
 
 
 def slopes(stats: Sequence[WarmupStats], axis: str) -> tuple[FloatArray, float]:
@@ -190,9 +206,12 @@ class Decision:
     condition: float
     candidate_rms_dps: Mapping[str, float] = field(default_factory=dict)
     current_rms_dps: Mapping[str, float] = field(default_factory=dict)
+    axes_adopted: tuple[str, ...] = ()
+    """The axes whose learnt model is used (all of them, or per axis without a current)."""
 
     def to_dict(self) -> dict[str, Any]:
-        return {"adopt": self.adopt, "reasons": list(self.reasons), "warmups": self.warmups,
+        return {"adopt": self.adopt, "axes_adopted": list(self.axes_adopted),
+                "reasons": list(self.reasons), "warmups": self.warmups,
                 "start_span_c": self.start_span_c, "condition": self.condition,
                 "candidate_heldout_rms_dps": dict(self.candidate_rms_dps),
                 "current_heldout_rms_dps": dict(self.current_rms_dps)}
@@ -208,6 +227,20 @@ def heldout_rms(stats: Sequence[WarmupStats], axis: str,
             [s for j, s in enumerate(stats) if j != k], axis)[0]
         sse += w.sse(axis, beta)
     return math.sqrt(sse / sum(w.n for w in stats))
+
+
+def noise_var(stats: Sequence[WarmupStats], axis: str) -> float:
+    """White-noise variance of ``axis`` (°/s)², from successive differences."""
+    n = sum(w.ndd for w in stats)
+    return sum(w.sdd[axis] for w in stats) / (2.0 * n) if n else 0.0
+
+
+def heldout_bias_rms(stats: Sequence[WarmupStats], axis: str,
+                     fixed: FloatArray | None = None) -> float:
+    """:func:`heldout_rms` with the white noise taken out: the RMS of the bias error,
+    √max(SSE/n − σ², 0) (°/s)."""
+    rms = heldout_rms(stats, axis, fixed)
+    return math.sqrt(max(rms * rms - noise_var(stats, axis), 0.0))
 
 
 def decide(stats: Sequence[WarmupStats], current: Calibration | None,
@@ -228,17 +261,23 @@ def decide(stats: Sequence[WarmupStats], current: Calibration | None,
     if not cond <= GATES["max_condition"]:
         return Decision(False, (f"conditioning: {cond:.3g} > {GATES['max_condition']:g}",),
                         len(stats), span, cond)
-    cand = {a: heldout_rms(stats, a) for a in axes}
-    cur = {a: heldout_rms(stats, a, basis_slopes(current, a)) for a in axes}
-    worse = [a for a in axes if not cand[a] <= (1.0 - margin) * cur[a]]
+    cand = {a: heldout_bias_rms(stats, a) for a in axes}
+    cur = {a: heldout_bias_rms(stats, a, basis_slopes(current, a)) for a in axes}
+    better = tuple(a for a in axes if cand[a] <= (1.0 - margin) * cur[a])
+    worse = [a for a in axes if a not in better]
+    what = "no compensation" if current is None else "the current calibration"
+    if better:
+        reasons.append(f"held-out warm-ups, bias error: better than {what} by ≥ "
+                       f"{100 * margin:g} % on {', '.join(better)} (" + ", ".join(
+                           f"{a}: {cand[a]:.4g} vs {cur[a]:.4g} °/s" for a in better) + ")")
     if worse:
-        reasons.append("held-out warm-ups: the candidate is not better by "
-                       f"{100 * margin:g} % on axes {', '.join(worse)} (" + ", ".join(
-                           f"{a}: {cand[a]:.4g} vs {cur[a]:.4g} °/s" for a in worse) + ")")
-    else:
-        reasons.append("held-out warm-ups: better on every axis (" + ", ".join(
-            f"{a}: {cand[a]:.4g} vs {cur[a]:.4g} °/s" for a in axes) + ")")
-    return Decision(not worse, tuple(reasons), len(stats), span, cond, cand, cur)
+        reasons.append(f"held-out warm-ups, bias error: not better than {what} by "
+                       f"{100 * margin:g} % on {', '.join(worse)} (" + ", ".join(
+                           f"{a}: {cand[a]:.4g} vs {cur[a]:.4g} °/s" for a in worse) + ")"
+                       + ("" if current is None else ": the current calibration is kept"))
+    adopted = better if current is None else (tuple(axes) if not worse else ())
+    return Decision(bool(adopted), tuple(reasons), len(stats), span, cond, cand, cur,
+                    adopted)
 
 
 def learnt_calibration(stats: Sequence[WarmupStats], axes: Sequence[str], *,
@@ -248,6 +287,9 @@ def learnt_calibration(stats: Sequence[WarmupStats], axes: Sequence[str], *,
     the power-ons used, the temperature coverage, the validation figures."""
     coefficients: dict[str, tuple[float, ...]] = {}
     for a in axes:
+        if decision is not None and a not in decision.axes_adopted:
+            coefficients[a] = (0.0,) * (K + 1)  # not learnt well enough: no compensation
+            continue
         beta = slopes(stats, a)[0]
         coefficients[a] = (*(float(b) for b in beta), float(intercept(stats, a, beta)))
     rng = ValidRange(min(w.t_range_c[0] for w in stats), max(w.t_range_c[1] for w in stats),
@@ -264,4 +306,4 @@ def learnt_calibration(stats: Sequence[WarmupStats], axes: Sequence[str], *,
 
 
 __all__ = ["ADOPT_MARGIN", "GATES", "LEARN_SCALING", "Decision", "WarmupStats", "decide",
-           "heldout_rms", "learnt_calibration", "warmup_rows"]
+           "heldout_bias_rms", "heldout_rms", "learnt_calibration", "noise_var", "warmup_rows"]

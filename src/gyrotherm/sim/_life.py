@@ -51,9 +51,11 @@ def power_on(ambient_c: float, *, gyro: GyroParams = LIFE_GYRO, warmup_s: float 
 
 
 def life(n: int, *, seed: int = 0, ambient_range_c: tuple[float, float] = (-10.0, 40.0),
-         **kw: float) -> list[Run]:
+         gyro: GyroParams = LIFE_GYRO, warmup_s: float = 600.0,
+         rate_hz: float = 10.0) -> list[Run]:
     """``n`` power-ons from ambients drawn with ``seed`` (power-on k uses seed·1000 + k)."""
-    return [power_on(a, seed=seed * 1000 + k, name=f"life{seed}-{k:02d}", **kw)  # type: ignore[arg-type]
+    return [power_on(a, seed=seed * 1000 + k, name=f"life{seed}-{k:02d}", gyro=gyro,
+                     warmup_s=warmup_s, rate_hz=rate_hz)
             for k, a in enumerate(ambients(n, ambient_range_c=ambient_range_c, seed=seed))]
 
 
