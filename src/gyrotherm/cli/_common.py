@@ -65,6 +65,9 @@ def damage_notes(path: str, runs: Sequence[Run]) -> list[str]:
     if meta.get("instances_skipped"):
         notes.append(f"{path}: IMU instance(s) skipped, the others read: "
                      f"{meta['instances_skipped']}")
+    if meta.get("fast_path_fallback"):
+        notes.append(f"{path}: read by the slower library decoder, not the numpy fast path "
+                     f"({meta['fast_path_fallback']})")
     return notes
 
 

@@ -36,6 +36,9 @@ S_PER_US = 1e-6
 S_PER_NS = 1e-9
 ACCEL_KEYS = {"x": "accel_x_mps2", "y": "accel_y_mps2", "z": "accel_z_mps2"}
 """``Run.extra`` keys of the accelerometer axes (m/s²)."""
+FALLBACK_KEY = "fast_path_fallback"
+"""Metadata key: why a binary log was decoded by its library (pymavlink, pyulog,
+rosbags) instead of the readers' numpy fast path; absent when the fast path read it."""
 ARMED_KEY = "armed"
 """``Run.extra`` key of the vehicle's arming state at each row: 1 armed, 0 disarmed."""
 

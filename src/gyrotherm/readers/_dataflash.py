@@ -55,6 +55,7 @@ from gyrotherm._errors import RunFileError
 from gyrotherm.codecs import Run
 from gyrotherm.readers._common import (
     DEG_PER_RAD,
+    FALLBACK_KEY,
     S_PER_US,
     FloatArray,
     each_instance,
@@ -86,7 +87,18 @@ def _open(path: Path) -> Any:
 
 _NUMPY = {"b": "i1", "B": "u1", "h": "<i2", "H": "<u2", "i": "<i4", "I": "<u4", "q": "<i8",
           "Q": "<u8", "e": "<f2", "f": "<f4", "d": "<f8"}
-_CHUNK = 1 << 14  # messages decoded per numpy gather: its index is _CHUNK × len int64
+
+
+def field_at(buf: NDArray[np.uint8], offs: NDArray[np.int64], dtype: np.dtype[Any]
+             ) -> NDArray[Any]:
+    """The ``dtype`` value at each byte offset ``offs`` of ``buf``: one numpy gather
+    through a view of ``buf`` with a stride of one byte (unaligned loads), not a
+    gather of every byte of every message. ``offs`` must leave room for the value."""
+    n = len(buf) - dtype.itemsize + 1
+    if n <= 0:
+        return np.zeros(0, dtype=dtype)
+    view: NDArray[Any] = np.ndarray(shape=(n,), dtype=dtype, buffer=buf, strides=(1,))
+    return view[offs]
 
 
 def _dtype(path: Path, name: str, msg_struct: str) -> np.dtype[np.void]:
@@ -125,26 +137,27 @@ def _gather(path: Path, log: Any, name: str, listed: NDArray[np.int64], wanted: 
         raise RunFileError(f"{path}: message {name!r}: FMT length {fmt.len} does not match "
                            f"its format {fmt.format!r}")
     buf = np.frombuffer(log.data_map, dtype=np.uint8)
-    width = np.arange(3, int(fmt.len), dtype=np.int64)
-    out = {c: np.empty(len(offs)) for c in wanted}
-    for start in range(0, len(offs), _CHUNK):
-        chunk = offs[start:start + _CHUNK]
-        rec = buf[chunk[:, None] + width].view(dtype)[:, 0]
-        for c in wanted:
-            i = columns.index(c)
-            mult = fmt.msg_mults[i]
-            v = rec[f"f{i}"].astype(np.float64)
-            out[c][start:start + len(chunk)] = v * mult if mult is not None else v
+    fields: dict[str, Any] = dict(dtype.fields or {})
+    out: dict[str, FloatArray] = {}
+    for c in wanted:
+        i = columns.index(c)
+        mult = fmt.msg_mults[i]
+        field, at = fields[f"f{i}"][:2]
+        v = field_at(buf, offs + 3 + at, field).astype(np.float64)
+        out[c] = v * mult if mult is not None else v
     return out, len(listed) - len(offs)
 
 
-def read_dataflash(path: str | os.PathLike[str]) -> list[Run]:
+def read_dataflash(path: str | os.PathLike[str], *, fast: bool = True) -> list[Run]:
     """Every IMU instance in DataFlash log ``path`` as a :class:`Run`, by instance.
 
+    The log is indexed by numpy (:mod:`._fast_dataflash`); what that does not cover
+    is indexed by pymavlink, with the reason in metadata ``fast_path_fallback``
+    (``fast=False``: pymavlink always, the reference the fast path is tested against).
     Raises :class:`RunFileError` naming the file, the message and what is missing.
     """
     p = Path(path)
-    log = _open(p)
+    log, fallback = _open_fast(p) if fast else (_open(p), "")
     try:
         armed = arming_state(p, log)
         ident = identity(p, log)  # before _parts, which frees pymavlink's index
@@ -152,10 +165,22 @@ def read_dataflash(path: str | os.PathLike[str]) -> list[Run]:
     finally:
         log.close()  # the mmap and the file handle
     sha = sha256_of(p)
+    if fallback:
+        ident = {**ident, FALLBACK_KEY: fallback}
     return each_instance(p, [(f"message {name!r} instance {inst}",
                               partial(_run, p, inst, name, cols, cut=cut, sha=sha, armed=armed,
                                       ident=ident))
                              for inst, name, cols in sorted(parts, key=lambda x: x[0])])
+
+
+def _open_fast(path: Path) -> tuple[Any, str]:
+    """The log indexed by numpy, else by pymavlink with the reason ("" when fast)."""
+    from gyrotherm.readers._fast_dataflash import Fallback, open_fast
+
+    try:
+        return open_fast(path), ""
+    except Fallback as exc:
+        return _open(path), f"indexed by pymavlink: {exc}"
 
 
 def arming_state(p: Path, log: Any) -> Arming | None:
@@ -251,6 +276,8 @@ def _run(p: Path, inst: int, name: str, cols: dict[str, FloatArray], *, cut: int
         "ahrs_orientation": _int_text((ident or {}).get("param:AHRS_ORIENTATION")),
         "tcal_enable": _int_text((ident or {}).get(f"param:INS_TCAL{inst + 1}_ENABLE")),
     }
+    if (ident or {}).get(FALLBACK_KEY):
+        meta[FALLBACK_KEY] = (ident or {})[FALLBACK_KEY]
     t = cols[time_col] * scale
     return make_run(
         path=p, device=f"IMU[{inst}]", where=f"message {name!r} instance {inst}",
