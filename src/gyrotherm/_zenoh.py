@@ -195,7 +195,17 @@ def _is_multicast(endpoint: str) -> bool:
         return False
 
 
-def protect_keys(config: zenoh.Config, sensor_keys: KeyExprs, *, source: str) -> zenoh.Config:
+Protected = KeyExprs | Sequence[KeyExprs | str]
+"""What :func:`protect_keys` protects: one sensor's keys, or several sensors' keys and
+key prefixes (a daemon with several IMUs: each sensor and ``gyrotherm/<vehicle>/consistency``)."""
+
+
+def _prefixes(protected: Protected) -> list[str]:
+    items = [protected] if isinstance(protected, KeyExprs) else list(protected)
+    return [i.rate.rsplit("/", 1)[0] if isinstance(i, KeyExprs) else i for i in items]
+
+
+def protect_keys(config: zenoh.Config, sensor_keys: Protected, *, source: str) -> zenoh.Config:
     """Add the daemon's access-control rule to ``config`` (in place) and return it.
 
     Every remote session (any mode, any link, any identity) is denied *ingress*
@@ -217,13 +227,14 @@ def protect_keys(config: zenoh.Config, sensor_keys: KeyExprs, *, source: str) ->
                     "control does not apply to it, so anyone on that group could publish "
                     "as the daemon; use unicast endpoints"
                 )
-    prefix = sensor_keys.rate.rsplit("/", 1)[0]
+    prefixes = _prefixes(sensor_keys)
+    prefix = ", ".join(prefixes)
     rule = {
         "id": ACL_RULE_ID,
         "permission": "deny",
         "flows": ["ingress"],
         "messages": list(PROTECTED_MESSAGES),
-        "key_exprs": [f"{prefix}/**"],
+        "key_exprs": [f"{p}/**" for p in prefixes],
     }
     subject = {"id": ACL_SUBJECT_ID}  # no property: matches every remote session
     policy = {"id": ACL_POLICY_ID, "rules": [ACL_RULE_ID], "subjects": [ACL_SUBJECT_ID]}
@@ -272,7 +283,7 @@ def session_config(
     connect: Sequence[str] = (),
     config_file: str | Path | None = None,
     allow_any_interface: bool = False,
-    protect: KeyExprs | None = None,
+    protect: Protected | None = None,
 ) -> zenoh.Config:
     """Build a :class:`zenoh.Config` with safe defaults (module docstring).
 

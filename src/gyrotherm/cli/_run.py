@@ -29,7 +29,7 @@ def preload() -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from gyrotherm.daemon import Daemon, load_config  # only `run` loads the daemon and zenoh
+    from gyrotherm.daemon import Daemon, load_vehicle_config  # only `run` loads the daemon
 
     level = args.log_level or ("warning" if getattr(args, "quiet", False) else "info")
     logging.basicConfig(
@@ -37,19 +37,30 @@ def cmd_run(args: argparse.Namespace) -> int:
         stream=sys.stderr,
         format="%(levelname)s %(name)s: %(message)s",  # the journal adds the time
     )
-    config = load_config(args.config)
+    config = load_vehicle_config(args.config)
+    if args.imu is not None:
+        config = config.only(args.imu)
     daemon = Daemon(config)
     daemon.install_signal_handlers()
     summary = daemon.run()
     dropped = sum(summary.drops.values())
     print(f"frames in {summary.frames_received}, published {summary.frames_published}, "
           f"dropped {dropped} {dict(sorted(summary.drops.items()))}", flush=True)
+    if config.multi:
+        for name, c in summary.per_imu.items():
+            print(f"{name}: frames in {c.frames_received}, published {c.frames_published}, "
+                  f"dropped {sum(c.drops.values())} {dict(sorted(c.drops.items()))}", flush=True)
+        print(f"bus: frames of no IMU, transport items {dict(sorted(summary.bus_drops.items()))}",
+              flush=True)
     return 0
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("run", help="run the streaming daemon (CAN → compensation → Zenoh)")
     p.add_argument("--config", required=True, help="TOML config file (see docs/operations.md)")
+    p.add_argument("--imu", default=None, metavar="SENSOR",
+                   help="with [[imu]] tables: run only this IMU (its own process; default: "
+                   "every IMU of the file in this one process)")
     p.add_argument("--log-level", default=None, choices=("debug", "info", "warning", "error"),
                    help="log level on stderr (default: info; with -q: warning)")
     p.set_defaults(func=cmd_run)

@@ -1,7 +1,9 @@
 """``gyrotherm sim stream``: play a simulated gyro, a run file or a candump log onto a CAN bus.
 
 Source (one of; default ``--chamber 60``): ``--chamber HEATING_MIN`` simulates
-Tang et al.'s chamber run (``--seed``, ``--rate-hz``, ``--hold-s``), ``--run FILE``
+Tang et al.'s chamber run (``--seed``, ``--rate-hz``, ``--hold-s``; ``--gyros N``:
+N gyros side by side, gyro k with its own bias coefficients, seed ``seed + k`` and
+CAN ids 0x120 + 2k / 0x121 + 2k, see :mod:`gyrotherm.sim._gyros`), ``--run FILE``
 plays a run file, ``--candump FILE`` replays a ``candump -l`` log with its own
 timestamps. Frames carry sensor time (run ``time_s``), at any ``--speed``.
 
@@ -60,6 +62,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     src.add_argument("--run", metavar="FILE", help="play a run file (CSV version 1; default: none)")
     src.add_argument("--candump", metavar="FILE", help="replay a candump -l log (default: none)")
     p.add_argument("--seed", type=int, default=0, help="--chamber: random seed (default 0)")
+    p.add_argument("--gyros", type=int, default=1,
+                   help="--chamber: simulated gyros on the bus, each with its own physics, "
+                   "seed (seed + k) and CAN ids (DBC ids + 2k) (default 1)")
     p.add_argument("--rate-hz", type=float, default=10.0,
                    help="--chamber: sample rate, Hz (default 10)")
     p.add_argument("--hold-s", type=float, default=3600.0,
@@ -105,6 +110,10 @@ def _check(args: argparse.Namespace) -> None:
         raise ConfigError(
             f"--speed: must be >= 0 (0 or inf: as fast as possible), got {args.speed}"
         )
+    if not 1 <= args.gyros <= 16:
+        raise ConfigError(f"--gyros: must be in [1, 16], got {args.gyros}")
+    if args.gyros > 1 and (args.run is not None or args.candump is not None):
+        raise ConfigError("--gyros: only with --chamber (simulated gyros)")
     if args.max_frames is not None and args.max_frames < 1:
         raise ConfigError(f"--max-frames: must be >= 1, got {args.max_frames}")
     if args.wait_clients < 0:
@@ -137,6 +146,14 @@ def _frames(args: argparse.Namespace) -> FrameStream:
         minutes = DEFAULT_HEATING_MIN if args.chamber is None else args.chamber
         if not 0 <= minutes <= 24 * 60:
             raise ConfigError(f"--chamber: heating time must be in [0, 1440] min, got {minutes}")
+        if args.gyros > 1:
+            from gyrotherm.sim._gyros import gyro_params, several_gyros
+
+            runs = [chamber_runs([minutes], seed=args.seed + k, rate_hz=args.rate_hz,
+                                 hold_s=args.hold_s, gyro=gyro_params(k))[0]
+                    for k in range(args.gyros)]
+            return several_gyros(runs, dbc_path=args.dbc,
+                                 temperature_period_s=args.temperature_period_s)
         run = chamber_runs([minutes], seed=args.seed, rate_hz=args.rate_hz, hold_s=args.hold_s)[0]
     return frames_from_run(run, encoder=encoder, temperature_period_s=args.temperature_period_s)
 

@@ -40,6 +40,9 @@ EXTENDED_KEY = 1 << 31
 """Added to an extended (29-bit) frame id to form the lookup key, as DBC files do."""
 
 
+_ID_FIELDS = ("rate_frame_id", "temperature_frame_id")
+
+
 @dataclass(frozen=True)
 class SignalMap:
     """Names of the DBC messages and signals that carry the gyro's data.
@@ -64,10 +67,18 @@ class SignalMap:
     temperature_crc_signal: str | None = None
     status_signal: str | None = None
     crc_algorithm: str = CRC_NONE
+    rate_frame_id: int | None = None
+    temperature_frame_id: int | None = None
 
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
+            if f.name in _ID_FIELDS:
+                if value is not None and (isinstance(value, bool) or not isinstance(value, int)
+                                          or not 0 <= value <= 0x1FFFFFFF):
+                    raise ConfigError(f"signal map: {f.name} must be a CAN id in "
+                                      f"[0, 0x1FFFFFFF] or None, got {value!r}")
+                continue
             optional = f.default is None
             if not (isinstance(value, str) and value) and not (optional and value is None):
                 raise ConfigError(
@@ -260,7 +271,8 @@ def _plain_unsigned(dbc: Path, message: Any, f: Field, role: str, *, bits: int |
 
 
 def _plan(dbc: Path, db: Any, name: str, values: list[tuple[str, str]],
-          counter: str | None, crc_name: str | None, crc: Crc8 | None) -> MessagePlan:
+          counter: str | None, crc_name: str | None, crc: Crc8 | None,
+          frame_id: int | None = None) -> MessagePlan:
     try:
         message = db.get_message_by_name(name)
     except KeyError:
@@ -282,11 +294,15 @@ def _plan(dbc: Path, db: Any, name: str, values: list[tuple[str, str]],
         _plain_unsigned(dbc, message, crc_field, "CRC", bits=8)
     all_fields = [*value_fields, counter_field, crc_field]
     ext = bool(message.is_extended_frame)
+    fid = int(message.frame_id) if frame_id is None else frame_id
+    if not ext and fid > 0x7FF:
+        raise ConfigError(f"{dbc}: message {name!r} is a standard (11-bit) frame: frame id "
+                          f"override {fid:#x} is above 0x7ff")
     return MessagePlan(
         name=message.name,
         message=message,
-        key=int(message.frame_id) + (EXTENDED_KEY if ext else 0),
-        frame_id=int(message.frame_id),
+        key=fid + (EXTENDED_KEY if ext else 0),
+        frame_id=fid,
         is_extended_id=ext,
         length=int(message.length),
         values=value_fields,
@@ -311,12 +327,13 @@ def resolve_layout(dbc_path: str | os.PathLike[str], signal_map: SignalMap) -> L
     rate = _plan(dbc, db, m.rate_message,
                  [(m.rate_x_signal, "rate x"), (m.rate_y_signal, "rate y"),
                   (m.rate_z_signal, "rate z")],
-                 m.rate_counter_signal, m.rate_crc_signal, crc)
+                 m.rate_counter_signal, m.rate_crc_signal, crc, m.rate_frame_id)
     temp_values = [(m.temperature_signal, "temperature")]
     if m.status_signal is not None:
         temp_values.append((m.status_signal, "status"))
     temperature = _plan(dbc, db, m.temperature_message, temp_values,
-                        m.temperature_counter_signal, m.temperature_crc_signal, crc)
+                        m.temperature_counter_signal, m.temperature_crc_signal, crc,
+                        m.temperature_frame_id)
     if rate.key == temperature.key:
         raise ConfigError(f"{dbc}: messages {rate.name!r} and {temperature.name!r} share frame id")
     return Layout(dbc_path=dbc, rate=rate, temperature=temperature)

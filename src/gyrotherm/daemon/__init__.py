@@ -10,9 +10,16 @@ from gyrotherm.daemon._config import (
 from gyrotherm.daemon._pipeline import Counters, Pipeline, Sink
 from gyrotherm.daemon._sdnotify import Notifier
 from gyrotherm.daemon._service import Daemon, RunSummary
+from gyrotherm.daemon._vehicle import (
+    ConsistencyConfig,
+    VehicleConfig,
+    load_vehicle_config,
+    parse_vehicle_config,
+)
 
 __all__ = [
     "CanConfig",
+    "ConsistencyConfig",
     "Counters",
     "Daemon",
     "DaemonConfig",
@@ -20,7 +27,10 @@ __all__ = [
     "Pipeline",
     "RunSummary",
     "Sink",
+    "VehicleConfig",
     "ZenohConfig",
     "load_config",
+    "load_vehicle_config",
     "parse_config",
+    "parse_vehicle_config",
 ]

@@ -180,6 +180,9 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
                  base_dir: Path | None = None) -> DaemonConfig:
     """Validate a parsed TOML document."""
     base = base_dir or Path.cwd()
+    if "imu" in data:
+        raise ConfigError(f"{source}: [[imu]] tables describe several IMUs: read it with "
+                          "gyrotherm.daemon.load_vehicle_config (gyrotherm run does)")
     _unknown(data, {"vehicle", "sensor", "calibration", "health_period_s", "can", "estimator",
                     "zenoh", "state_dir", "power_on_gap_s", "zero", "device_id",
                     "device_mismatch"}, source)

@@ -37,6 +37,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import Counter
+from collections.abc import Callable
 from typing import Any
 
 from gyrotherm._errors import ConfigError, PublishError
@@ -84,6 +85,10 @@ _ZERO_UNUSABLE = int(StatusFlags.TEMPERATURE_STALE | StatusFlags.BIAS_INVALID
                      | StatusFlags.SENSOR_FAULT | StatusFlags.NO_CALIBRATION)
 __all__ = ["BAD_TIMESTAMP", "INTERNAL_ERROR", "MAX_ABS_TIME_S", "MAX_TIME_JUMP_S",
            "NO_SUBSCRIBER", "PUBLISH_ERROR", "TIME_BASE_FRAMES", "Counters", "Pipeline", "Sink"]
+
+
+#: A corrected-rate observer: (receive_time_s, x_dps, y_dps, z_dps).
+RateTap = Callable[[float, float, float, float], None]
 
 
 def _log_zero(zero: BootZero, time_s: float) -> None:
@@ -141,6 +146,9 @@ class Pipeline(TimeWindow):
         self._power_on_waits_for: str | None = None
         self._zeroing = False  # a boot-time zero is pending: rate frames feed it
         self._decoder = decoder
+        self.rate_tap: RateTap | None = None
+        """Called with (receive_time_s, x, y, z) of every corrected rate published or not
+        (the consistency check of several IMUs, :mod:`gyrotherm.daemon._consistency`)."""
         self._check_counters = check_counters
         self._sink = sink
         self._default_estimator = estimator or EstimatorConfig()
@@ -175,6 +183,15 @@ class Pipeline(TimeWindow):
         self._compensation.set_calibration(calibration)
         self._max_jump_s = max(self._max_time_jump_s, self._estimator.config.stale_after_s)
         self._refresh_bias(step=False)
+
+    @property
+    def decoder(self) -> FrameDecoder:
+        return self._decoder
+
+    @property
+    def frames_received(self) -> int:
+        """Frames handed to :meth:`process` so far."""
+        return self._received
 
     @property
     def compensation(self) -> Compensation:
@@ -270,6 +287,9 @@ class Pipeline(TimeWindow):
                 flags = self._flags | (flags & (StatusFlags.TEMPERATURE_STALE
                                                 | StatusFlags.COUNTER_JUMP))
                 b0, b1, b2 = self._bias
+        tap = self.rate_tap
+        if tap is not None:
+            tap(receive_time_s, x - b0, y - b1, z - b2)
         try:
             routed = self._sink.put_rate(encode_rate_values(
                 self._rate_seq, t, receive_time_s, x - b0, y - b1, z - b2, x, y, z,

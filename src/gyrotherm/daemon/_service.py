@@ -34,44 +34,45 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import math
 import signal
 import threading
 import time
-from dataclasses import dataclass
-from pathlib import Path
+from collections import Counter
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from types import FrameType
 from typing import Any
 
 import zenoh
 
 from gyrotherm._memory import TRIM_PERIOD_S, release_free_heap
-from gyrotherm._zenoh import keys, session_config, zenoh_error_text
-from gyrotherm.bus import FrameSource
-from gyrotherm.codecs import FrameDecoder
-from gyrotherm.codecs._wire import (
-    CalibrationInfo,
-    HealthMessage,
-    StatusFlags,
-    encode_calibration_info,
-    encode_health,
-)
+from gyrotherm._zenoh import KEY_PREFIX, KeyExprs, session_config, zenoh_error_text
+from gyrotherm.bus import FrameSource, TransportItem
+from gyrotherm.codecs._canmap import EXTENDED_KEY
+from gyrotherm.codecs._wire_consistency import encode_consistency
 from gyrotherm.compensation import Calibration
 from gyrotherm.daemon._attempt import close_session, open_session
 from gyrotherm.daemon._buskeeper import BusKeeper
-from gyrotherm.daemon._calload import load_daemon_calibration
 from gyrotherm.daemon._config import DaemonConfig
+from gyrotherm.daemon._consistency import Consistency
 from gyrotherm.daemon._effects_store import EffectsKeeper
+from gyrotherm.daemon._imu import ImuChannel
 from gyrotherm.daemon._pipeline import Counters, Pipeline
 from gyrotherm.daemon._sdnotify import Notifier
-from gyrotherm.daemon._sink import _ZenohSink, bound_publishing
+from gyrotherm.daemon._sink import bound_publishing
+from gyrotherm.daemon._vehicle import VehicleConfig
 
 log = logging.getLogger("gyrotherm.daemon")
+
+#: Bus-level drop reason (several IMUs): a frame whose id belongs to no configured IMU.
+UNKNOWN_ID = "unknown_id"
 
 
 @dataclass(frozen=True)
 class RunSummary:
-    """What a daemon run did (returned by :meth:`Daemon.run`)."""
+    """What a daemon run did (returned by :meth:`Daemon.run`). With several IMUs the
+    totals add every IMU's and the bus-level frames (``bus_drops``: frames of no IMU,
+    transport items); ``per_imu`` has each IMU's own accounting."""
 
     frames_received: int
     frames_published: int
@@ -79,39 +80,61 @@ class RunSummary:
     reloads: int
     reload_failures: int
     uptime_s: float
+    per_imu: Mapping[str, Counters] = field(default_factory=dict)
+    bus_drops: Mapping[str, int] = field(default_factory=dict)
 
 
 class Daemon:
-    """The gyrotherm service for one sensor."""
+    """The gyrotherm service: one bus, one Zenoh session, one channel per IMU."""
 
-    def __init__(self, config: DaemonConfig, *, notifier: Notifier | None = None) -> None:
-        self.config = config
+    def __init__(self, config: DaemonConfig | VehicleConfig, *,
+                 notifier: Notifier | None = None) -> None:
+        vehicle = config if isinstance(config, VehicleConfig) else VehicleConfig((config,))
+        self.vehicle = vehicle
+        self.config = vehicle.imus[0]
+        """The first IMU's configuration (bus and Zenoh settings are the same for all)."""
         self._notifier = notifier or Notifier.from_environment()
         self._stop = threading.Event()
         self._reload = threading.Event()
         self.ready = threading.Event()
         """Set once the bus and the Zenoh session are up (for tests and embedding)."""
-        self.reloads = 0
-        self.reload_failures = 0
-        self._calibration: Calibration | None = None
-        self._calibration_id = ""
-        self._pipeline: Pipeline | None = None
-        self._sink: _ZenohSink | None = None
+        self._multi = vehicle.multi
+        self.channels = [ImuChannel(c, tolerant=self._multi) for c in vehicle.imus]
+        self.consistency = (Consistency(vehicle.sensors, vehicle.consistency)
+                            if vehicle.consistency is not None and len(self.channels) > 1
+                            else None)
+        self._consistency_pubs: list[Any] = []
+        self._bus_received = 0
+        self._bus_drops: Counter[str] = Counter()
         self._started = time.monotonic()
-        self._health_seq = 0
-        self._last_health = -math.inf
         self._last_trim = time.monotonic()
         self._last_frame = time.monotonic()
         self._bus: FrameSource | None = None
         self._signalled: int | None = None  # set by the signal handlers (no locks there)
         self._hup = False
-        self._keeper = BusKeeper(config.can, self._stopping, self._notifier.status)
-        self.effects_keeper = EffectsKeeper(config.state_dir, config.vehicle, config.sensor)
-        if config.calibration is not None:
-            self._calibration, self._calibration_id = self._read_calibration(config.calibration)
-        # What the queryable answers, replaced whole by the loop thread (never mutated):
-        # zenoh calls _on_query on its own thread.
-        self._snapshot = CalibrationInfo(self._calibration_id, self._calibration_dict(), None)
+        self._keeper = BusKeeper(self.config.can, self._stopping, self._notifier.status)
+
+    # --- one-IMU views (the first channel) ---------------------------------------------
+
+    @property
+    def _calibration(self) -> Calibration | None:
+        return self.channels[0].calibration
+
+    @property
+    def _calibration_id(self) -> str:
+        return self.channels[0].calibration_id
+
+    @property
+    def effects_keeper(self) -> EffectsKeeper:
+        return self.channels[0].effects_keeper
+
+    @property
+    def reloads(self) -> int:
+        return sum(ch.reloads for ch in self.channels)
+
+    @property
+    def reload_failures(self) -> int:
+        return sum(ch.reload_failures for ch in self.channels)
 
     # --- control (thread-safe) -----------------------------------------------------
 
@@ -149,72 +172,128 @@ class Daemon:
         if self._signalled is not None:
             log.info("signal %s: stopping", signal.Signals(self._signalled).name)
 
+    def _consistency_prefix(self) -> str:
+        return f"{KEY_PREFIX}/{self.config.vehicle}/consistency"
+
+    def _session_config(self) -> zenoh.Config:
+        z = self.config.zenoh
+        protect: list[KeyExprs | str] = [ch.keys for ch in self.channels]
+        if self.consistency is not None:
+            protect.append(self._consistency_prefix())
+        guard = protect[0] if len(protect) == 1 else protect
+        zconf = (session_config(config_file=z.config_file, protect=guard) if z.config_file else
+                 session_config(mode=z.mode, listen=z.listen, connect=z.connect,  # type: ignore[arg-type]
+                                protect=guard))
+        bound_publishing(zconf, z.publish_block_max_s)
+        return zconf
+
     def run(self, *, source: FrameSource | None = None) -> RunSummary:
         """Run until :meth:`stop` or a signal; ``source`` overrides the configured bus."""
         cfg = self.config
-        decoder = FrameDecoder(cfg.can.dbc, cfg.can.signals,
-                               on_counter_jump=cfg.can.on_counter_jump)  # type: ignore[arg-type]
-        z = cfg.zenoh
-        zconf = (session_config(config_file=z.config_file, protect=keys(cfg.vehicle, cfg.sensor))
-                 if z.config_file else
-                 session_config(mode=z.mode, listen=z.listen, connect=z.connect,  # type: ignore[arg-type]
-                                protect=keys(cfg.vehicle, cfg.sensor)))
-        bound_publishing(zconf, z.publish_block_max_s)
-        pipeline: Pipeline | None = None
+        zconf = self._session_config()
         with contextlib.ExitStack() as stack:
             # every resource is released in reverse order, whatever fails later
             log.info("starting: zenoh session, then the bus %s (for at most %g s)",
                      self._keeper.where, cfg.can.start_timeout_s)
             session = open_session(zconf, self._stopping)
             if session is None:
-                return self._summary(None)
+                return self._summary()
             stack.callback(close_session, session)
-            sink = _ZenohSink(session, cfg)
-            stack.callback(sink.undeclare)
-            self._sink = sink
-            pipeline = Pipeline(decoder, sink, calibration=self._calibration,
-                                estimator=cfg.estimator,
-                                check_counters=cfg.can.on_counter_jump == "deliver",
-                                power_on_gap_s=cfg.power_on_gap_s, zero=cfg.zero)
-            self._pipeline = pipeline
-            self.effects_keeper.restore(pipeline.compensation, self._calibration_id)
-            stack.callback(self._save_effects, pipeline, force=True)
-            k = keys(cfg.vehicle, cfg.sensor)
-            self._reply_key = k.calibration
-            queryable = session.declare_queryable(k.calibration, self._on_query)
-            stack.callback(queryable.undeclare)
+            for ch in self.channels:
+                ch.start(session, stack)
+            process = self._process_for_bus()
+            self._declare_consistency(session, stack)
             stack.callback(lambda: self._notifier.stopping(status="stopping"))
             stack.callback(self._keeper.close)
             if source is not None:
                 stack.callback(source.shutdown)
             bus = source or self._keeper.open_at_start()
             if bus is None:  # stopped while waiting for the bus
-                return self._summary(pipeline)
+                return self._summary()
             self._bus = bus
             self._started = self._last_frame = time.monotonic()
-            log.info("up: %s %s → %s", cfg.can.interface, cfg.can.channel, k.rate)
+            for ch in self.channels:
+                ch.last_frame = self._started
+            log.info("up: %s %s → %s", cfg.can.interface, cfg.can.channel,
+                     ", ".join(ch.keys.rate for ch in self.channels))
             release_free_heap()  # start-up's temporaries (gyrotherm._memory)
             self._last_trim = time.monotonic()
             self.ready.set()
             self._notifier.ready(status=self._status_line())
-            self._loop(pipeline, sink, reopen=source is None)
-        return self._summary(pipeline)
+            self._loop(process, reopen=source is None)
+        return self._summary()
 
-    def _summary(self, pipeline: Pipeline | None) -> RunSummary:
+    def _process_for_bus(self) -> Callable[[Any, float], None]:
+        """One IMU: its pipeline takes every frame (as always). Several: each frame goes to
+        the IMU owning its id; frames of no IMU and transport items are counted here."""
+        first = self.channels[0].pipeline
+        assert first is not None
+        if not self._multi:
+            return first.process
+        route: dict[int, Callable[[Any, float], None]] = {}
+        for i, ch in enumerate(self.channels):
+            assert ch.pipeline is not None
+            for key in ch.frame_keys():
+                route[key] = ch.pipeline.process
+            if self.consistency is not None:
+                ch.pipeline.rate_tap = self.consistency.tap(i)
+        drops = self._bus_drops
+        get = route.get
+
+        def process(msg: Any, receive_time_s: float) -> None:
+            if type(msg) is TransportItem:
+                self._bus_received += 1
+                drops[msg.reason] += 1
+                return
+            try:
+                key = msg.arbitration_id + (EXTENDED_KEY if msg.is_extended_id else 0)
+            except (AttributeError, TypeError):
+                key = -1
+            handler = get(key)
+            if handler is None:
+                self._bus_received += 1
+                drops[UNKNOWN_ID] += 1
+            else:
+                handler(msg, receive_time_s)
+
+        return process
+
+    def _declare_consistency(self, session: zenoh.Session, stack: contextlib.ExitStack) -> None:
+        if self.consistency is None:
+            return
+        prefix = self._consistency_prefix()
+        for a, b in self.consistency.pairs:
+            pub = session.declare_publisher(
+                f"{prefix}/{self.channels[a].sensor}/{self.channels[b].sensor}")
+            stack.callback(pub.undeclare)
+            self._consistency_pubs.append(pub)
+
+    def _summary(self) -> RunSummary:
         self._log_stop_reason()
-        c = pipeline.counters() if pipeline else Counters(0, 0, 0, 0, {}, 0)
-        log.info("stopped: %d frames in, %d published, drops %s", c.frames_received,
-                 c.frames_published, c.drops)
-        return RunSummary(c.frames_received, c.frames_published, c.drops, self.reloads,
-                          self.reload_failures, time.monotonic() - self._started)
+        none = Counters(0, 0, 0, 0, {}, 0)
+        per_imu = {ch.sensor: ch.pipeline.counters() if ch.pipeline else none
+                   for ch in self.channels}
+        received = self._bus_received + sum(c.frames_received for c in per_imu.values())
+        published = sum(c.frames_published for c in per_imu.values())
+        drops: Counter[str] = Counter(self._bus_drops)
+        for c in per_imu.values():
+            drops.update(c.drops)
+        log.info("stopped: %d frames in, %d published, drops %s", received, published,
+                 dict(drops))
+        if self._multi:
+            for name, c in per_imu.items():
+                log.info("stopped: %s: %d frames in, %d published, drops %s", name,
+                         c.frames_received, c.frames_published, c.drops)
+        return RunSummary(received, published, dict(drops), self.reloads,
+                          self.reload_failures, time.monotonic() - self._started,
+                          per_imu, dict(self._bus_drops))
 
-    def _loop(self, pipeline: Pipeline, sink: _ZenohSink, *, reopen: bool) -> None:
-        process = pipeline.process
+    def _loop(self, process: Callable[[Any, float], None], *, reopen: bool) -> None:
         now_wall = time.time
         mono = time.monotonic
         cpu = time.thread_time
         timeout = self.config.can.recv_timeout_s
-        period = self.config.health_period_s
+        period = min(ch.config.health_period_s for ch in self.channels)
         next_tick = mono()
         stop = self._stop
         stopping = self._stopping
@@ -259,7 +338,7 @@ class Daemon:
                 stop.wait(timeout)
             if mono() >= next_tick:
                 next_tick = mono() + min(period, 0.25)
-                self._housekeeping(pipeline, sink)
+                self._housekeeping()
                 if reopen:
                     keeper.tend(self._last_frame, suspect=suspect)
                     suspect = False
@@ -267,89 +346,76 @@ class Daemon:
                         bus = self._bus = keeper.bus
                         quiet = False
 
-    def _housekeeping(self, pipeline: Pipeline, sink: _ZenohSink) -> None:
+    def _housekeeping(self) -> None:
         self._notifier.watchdog()
         if self._reload.is_set() or self._hup:
             self._reload.clear()
             self._hup = False
-            self._do_reload(pipeline)
+            self._reload_all()
         now = time.monotonic()
-        self._save_effects(pipeline)
+        for ch in self.channels:
+            assert ch.pipeline is not None
+            ch.save_effects(ch.pipeline)
         if now - self._last_trim >= TRIM_PERIOD_S:
             self._last_trim = now
             release_free_heap()
-        if now - self._last_health >= self.config.health_period_s:
-            self._last_health = now
-            pipeline.tick()
-            silent = now - self._last_frame > pipeline.stale_after_s or self._bus is None
-            health = self._health(pipeline, silent=silent)
-            # the queryable's snapshot first: a subscriber that saw this health message and
-            # then asks must never get an older one
-            self._snapshot = CalibrationInfo(self._calibration_id, self._calibration_dict(),
-                                             health)
-            try:
-                sink.health.put(encode_health(health))
-                self._health_seq += 1
-            except zenoh.ZError as exc:
-                log.warning("health publish failed: %s", zenoh_error_text(exc))
+        published = False
+        for ch in self.channels:
+            assert ch.pipeline is not None
+            if self._multi:
+                ch.note_frames(now)
+            else:
+                ch.last_frame = self._last_frame
+            if now - ch.last_health >= ch.config.health_period_s:
+                silent = now - ch.last_frame > ch.pipeline.stale_after_s or self._bus is None
+                ch.publish_health(now, self._started, silent=silent)
+                published = True
+        if self.consistency is not None:
+            for pub, msg in zip(self._consistency_pubs, self.consistency.poll(time.time()),
+                                strict=False):
+                try:
+                    pub.put(encode_consistency(msg))
+                except zenoh.ZError as exc:
+                    log.warning("consistency publish failed: %s", zenoh_error_text(exc))
+        if published:
             self._notifier.status(self._status_line())
 
-    def _do_reload(self, pipeline: Pipeline) -> None:
-        path = self.config.calibration
+    def _reload_all(self) -> None:
         self._notifier.reloading(status="reloading calibration")
-        if path is None:
-            log.warning("SIGHUP: no calibration file configured; nothing to reload")
-        else:
-            try:
-                cal, cid = self._read_calibration(path)
-                pipeline.set_calibration(cal)
-            except Exception as exc:  # a bad file must never stop the daemon
-                self.reload_failures += 1
-                log.error("calibration reload failed, keeping %s: %s",
-                          self._calibration_id or "none", exc)
-            else:
-                self._calibration, self._calibration_id = cal, cid
-                self.reloads += 1
-                log.info("calibration reloaded: %s (%s)", path, cid)
-                self._snapshot = CalibrationInfo(cid, self._calibration_dict(),
-                                                 self._snapshot.health)
+        for ch in self.channels:
+            assert ch.pipeline is not None
+            ch.reload(ch.pipeline, prefix=f"{ch.sensor}: " if self._multi else "")
         self._notifier.ready(status=self._status_line())
 
-    def _read_calibration(self, path: Path) -> tuple[Calibration, str]:
-        cfg = self.config
-        return load_daemon_calibration(path, device_id=cfg.device_id,
-                                       device_mismatch=cfg.device_mismatch)
-
-    def _save_effects(self, pipeline: Pipeline, *, force: bool = False) -> None:
-        self.effects_keeper.save(pipeline.compensation, self._calibration_id,
-                                 time.monotonic(), force=force)
-
-    def _calibration_dict(self) -> dict[str, Any] | None:
-        return self._calibration.to_dict() if self._calibration else None
-
-    def _health(self, pipeline: Pipeline, *, silent: bool) -> HealthMessage:
-        extra = StatusFlags.TEMPERATURE_STALE if silent else StatusFlags.NONE
-        return pipeline.health(seq=self._health_seq, receive_time_s=time.time(),
-                               uptime_s=time.monotonic() - self._started,
-                               calibration_id=self._calibration_id, extra_flags=extra)
-
-    def _on_query(self, query: zenoh.Query) -> None:
-        # runs on a zenoh thread: read the one immutable snapshot, nothing else
-        query.reply(self._reply_key, encode_calibration_info(self._snapshot))
+    def _do_reload(self, pipeline: Pipeline) -> None:
+        """Reload the first IMU's calibration into ``pipeline`` (one-IMU tests)."""
+        self._notifier.reloading(status="reloading calibration")
+        self.channels[0].reload(pipeline)
+        self._notifier.ready(status=self._status_line())
 
     def _status_line(self) -> str:
-        p = self._pipeline
-        if p is None:
-            return "starting"
-        c = p.counters()
-        dropped = sum(c.drops.values())
+        parts = []
+        for ch in self.channels:
+            p = ch.pipeline
+            if p is None:
+                return "starting"
+            c = p.counters()
+            dropped = sum(c.drops.values())
+            name = f"{ch.sensor}: " if self._multi else ""
+            refused = "; calibration refused" if ch.calibration_error else ""
+            parts.append(f"{name}{c.frames_received} frames, {c.frames_published} published, "
+                         f"{dropped} dropped; calibration {ch.calibration_id or 'none'}{refused}; "
+                         f"flags {p.flags!r}")
+        sink = self.channels[0].sink
         zen = ""
-        if self._sink is not None:
-            subscribed = "yes" if self._sink.rate_matched else "none"
-            zen = f"; zenoh {self._sink.transports()} transports, rate subscribers {subscribed}"
-            if self._sink.congestion_episodes:
-                zen += f", congestion episodes {self._sink.congestion_episodes}"
+        if sink is not None:
+            subscribed = "yes" if any(ch.sink and ch.sink.rate_matched for ch in self.channels) \
+                else "none"
+            zen = f"; zenoh {sink.transports()} transports, rate subscribers {subscribed}"
+            episodes = sum(ch.sink.congestion_episodes for ch in self.channels if ch.sink)
+            if episodes:
+                zen += f", congestion episodes {episodes}"
+        if self._bus_received:
+            zen += f"; bus: {dict(self._bus_drops)}"
         down = self._keeper.status()
-        return (f"{c.frames_received} frames, {c.frames_published} published, "
-                f"{dropped} dropped; calibration {self._calibration_id or 'none'}; "
-                f"flags {p.flags!r}{zen}{'; ' + down if down else ''}")
+        return " | ".join(parts) + f"{zen}{'; ' + down if down else ''}"
