@@ -64,6 +64,7 @@ from gyrotherm.readers._common import (
     sort_unique,
     state_at,
 )
+from gyrotherm.readers._fast_common import field_at
 
 MESSAGES = ("IMU", "IMU2", "IMU3")
 _GYRO = ("GyrX", "GyrY", "GyrZ")
@@ -88,17 +89,6 @@ def _open(path: Path) -> Any:
 _NUMPY = {"b": "i1", "B": "u1", "h": "<i2", "H": "<u2", "i": "<i4", "I": "<u4", "q": "<i8",
           "Q": "<u8", "e": "<f2", "f": "<f4", "d": "<f8"}
 
-
-def field_at(buf: NDArray[np.uint8], offs: NDArray[np.int64], dtype: np.dtype[Any]
-             ) -> NDArray[Any]:
-    """The ``dtype`` value at each byte offset ``offs`` of ``buf``: one numpy gather
-    through a view of ``buf`` with a stride of one byte (unaligned loads), not a
-    gather of every byte of every message. ``offs`` must leave room for the value."""
-    n = len(buf) - dtype.itemsize + 1
-    if n <= 0:
-        return np.zeros(0, dtype=dtype)
-    view: NDArray[Any] = np.ndarray(shape=(n,), dtype=dtype, buffer=buf, strides=(1,))
-    return view[offs]
 
 
 def _dtype(path: Path, name: str, msg_struct: str) -> np.dtype[np.void]:

@@ -33,6 +33,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from gyrotherm.readers._fast_common import Fallback
+
+__all__ = ["Fallback", "FastLog", "open_fast"]
+
 HEAD1, HEAD2 = 0xA3, 0x95
 FMT_TYPE, FMT_LEN = 0x80, 89
 _BLOCK = 1 << 24  # bytes compared per numpy pass (16 MiB: a 16 MiB mask)
@@ -41,10 +45,6 @@ MAX_STEPS = 1 << 16
 _FMT_BODY = np.dtype([("type", "u1"), ("length", "u1"), ("name", "S4"), ("format", "S16"),
                       ("columns", "S64")])
 IntArray = NDArray[np.int64]
-
-
-class Fallback(Exception):
-    """The fast path does not cover this log: the reason, for the reader's note."""
 
 
 class FastLog:

@@ -23,6 +23,7 @@ release; ROS 1 messages with its Noetic store, the types named as in ROS 2).
 from __future__ import annotations
 
 import os
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -34,6 +35,7 @@ from gyrotherm._errors import RunFileError
 from gyrotherm.codecs import Run
 from gyrotherm.readers._common import (
     DEG_PER_RAD,
+    FALLBACK_KEY,
     S_PER_NS,
     hold_previous,
     make_run,
@@ -120,8 +122,14 @@ def _stamp_ns(msg: Any) -> int:
 
 
 def read_rosbag(path: str | os.PathLike[str], *, imu_topic: str | None = None,
-                temperature_topic: str | None = None) -> list[Run]:
+                temperature_topic: str | None = None, fast: bool = True) -> list[Run]:
     """One :class:`Run` per IMU topic and frame_id of the bag or MCAP file ``path``.
+
+    An indexed ``.mcap`` file's messages are decoded by numpy (:mod:`._fast_mcap`,
+    :mod:`._fast_cdr`); what that does not cover is decoded by rosbags with the
+    reason in metadata ``fast_path_fallback``, as are rosbag2 directories, ``.db3``
+    and ROS 1 bags (without a note: not in the fast path's scope). ``fast=False``:
+    rosbags always, the reference the fast path is tested against.
 
     Raises :class:`RunFileError` naming the file, the topic and what is missing.
     """
@@ -137,13 +145,13 @@ def read_rosbag(path: str | os.PathLike[str], *, imu_topic: str | None = None,
                            + ("; a cut MCAP file can be salvaged with `mcap recover`"
                               if "magic" in str(exc).lower() and not ros1 else "")) from exc
     try:
-        return _read(p, reader, imu_topic, temperature_topic, ros1=ros1)
+        return _read(p, reader, imu_topic, temperature_topic, ros1=ros1, fast=fast)
     finally:
         reader.close()
 
 
 def _read(p: Path, reader: Any, imu_topic: str | None, temperature_topic: str | None, *,
-          ros1: bool) -> list[Run]:
+          ros1: bool, fast: bool = True) -> list[Run]:
     from rosbags.typesys import Stores, get_typestore
 
     store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
@@ -160,6 +168,29 @@ def _read(p: Path, reader: Any, imu_topic: str | None, temperature_topic: str | 
         raise RunFileError(f"{p}: no {IMU_TYPE} topic in the bag (topics: "
                            f"{sorted(f'{t} [{m}]' for t, m in topics.items())})")
     pairs = {imu: _pick_temperature(p, imu, temps, temperature_topic) for imu in imus}
+    fallback = ""
+    if fast and not ros1 and p.is_file() and content_kind(p) == "mcap":
+        from gyrotherm.readers._fast_common import Fallback
+        from gyrotherm.readers._fast_rosbag import gather
+
+        try:
+            return _runs(p, pairs, *gather(p, sorted(pairs), sorted(set(pairs.values()))),
+                         fallback="")
+        except Fallback as exc:
+            fallback = f"decoded by rosbags: {exc}"
+    imu, temp, missing = _gather(p, reader, decode, pairs)
+    return _runs(p, pairs, imu, temp, missing, fallback=fallback, ros1=ros1)
+
+
+ImuRows = dict[tuple[str, str], tuple[NDArray[np.int64], NDArray[np.float64]]]
+"""(topic, frame_id) → stamps (ns) and the (n, 6) values, in the order rosbags reads."""
+TempRows = dict[str, NDArray[np.float64]]
+"""temperature topic → (n, 2) rows of stamp (ns, as float) and °C, in that order."""
+
+
+def _gather(p: Path, reader: Any, decode: Any, pairs: dict[str, str]
+            ) -> tuple[ImuRows, TempRows, dict[str, int]]:
+    """The IMU and temperature rows, each message decoded by rosbags."""
     wanted = set(pairs) | set(pairs.values())
     imu_rows: dict[tuple[str, str], _Rows] = {}
     temp_rows: dict[str, list[tuple[int, float]]] = {t: [] for t in pairs.values()}
@@ -187,22 +218,30 @@ def _read(p: Path, reader: Any, imu_topic: str | None, temperature_topic: str | 
                         + ((a.x, a.y, a.z) if has_acc else (nan, nan, nan)))
     except Exception as exc:  # truncated/corrupt storage, undecodable message
         raise RunFileError(f"{p}: unreadable message in the bag: {exc}") from exc
+    return ({k: r.arrays() for k, r in imu_rows.items()},
+            {t: np.asarray(v, dtype=np.float64).reshape(-1, 2) for t, v in temp_rows.items()},
+            stamp_missing)
+
+
+def _runs(p: Path, pairs: dict[str, str], imu_rows: ImuRows, temp_rows: TempRows,
+          stamp_missing: dict[str, int], *, fallback: str, ros1: bool = False) -> list[Run]:
+    """One run per (IMU topic, frame_id), each with its temperature topic held."""
     fmt = "rosbag1" if ros1 else "mcap" if content_kind(p) == "mcap" else "rosbag2"
     sha = sha256_of(p)
     runs: list[Run] = []
-    for (topic, frame), gathered in sorted(imu_rows.items()):
+    frames_of = Counter(t for t, _ in imu_rows)
+    for (topic, frame) in sorted(imu_rows):
         ttopic = pairs[topic]
-        if not temp_rows[ttopic]:
+        tt = temp_rows[ttopic]
+        if not len(tt):
             raise RunFileError(f"{p}: temperature topic {ttopic!r} has no message "
                                f"(IMU topic {topic!r})")
-        tt = np.asarray(temp_rows[ttopic], dtype=np.float64)
         keep, _, _ = sort_unique(tt[:, 0])
-        stamps, a = gathered.arrays()
+        stamps, a = imu_rows.pop((topic, frame))
         time_s = (stamps // 1_000_000_000).astype(np.float64) \
             + (stamps % 1_000_000_000) * S_PER_NS
         temperature = hold_previous(tt[keep, 0], tt[keep, 1], stamps.astype(np.float64))
-        frames = sum(1 for (t, _) in imu_rows if t == topic)
-        device = topic if frames == 1 else f"{topic}[{frame}]"
+        device = topic if frames_of[topic] == 1 else f"{topic}[{frame}]"
         meta = {
             "format": fmt, "device_id": device, "instance": str(len(runs)),
             "imu_topic": topic, "frame_id": frame, "temperature_topic": ttopic,
@@ -211,6 +250,7 @@ def _read(p: Path, reader: Any, imu_topic: str | None, temperature_topic: str | 
             "unit_time": "ns", "unit_temperature": "degC", "unit_rate": "rad/s",
             "unit_accel": "m/s2",
             "rows_before_first_temperature": str(int(np.count_nonzero(np.isnan(temperature)))),
+            **({FALLBACK_KEY: fallback} if fallback else {}),
         }
         runs.append(make_run(
             path=p, device=device, where=f"IMU topic {topic!r} frame_id {frame!r}",
@@ -218,5 +258,5 @@ def _read(p: Path, reader: Any, imu_topic: str | None, temperature_topic: str | 
             rates={ax: a[:, k] for k, ax in enumerate("xyz")}, rate_to_dps=DEG_PER_RAD,
             accel_mps2={ax: a[:, 3 + k] for k, ax in enumerate("xyz")},
             metadata=meta, sha256=sha))
-        del gathered, a, stamps
+        del a, stamps
     return runs
