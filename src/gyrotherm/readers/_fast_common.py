@@ -23,3 +23,19 @@ def field_at(buf: NDArray[np.uint8], offs: NDArray[np.int64], dtype: np.dtype[An
         return np.zeros(0, dtype=dtype)
     view: NDArray[Any] = np.ndarray(shape=(n,), dtype=dtype, buffer=buf, strides=(1,))
     return view[offs]
+
+
+def fields_at(buf: NDArray[np.uint8], offs: NDArray[np.int64], dtype: np.dtype[Any]
+              ) -> dict[str, NDArray[Any]]:
+    """Every field of the records of ``dtype`` at byte offsets ``offs`` of ``buf``, a
+    column each: a strided view (copied) when the records are evenly spaced, else
+    one gather per field."""
+    names = dtype.names or ()
+    fields: dict[str, Any] = dict(dtype.fields or {})
+    if len(offs) > 1:
+        stride = int(offs[1] - offs[0])
+        if stride >= dtype.itemsize and bool(np.all(np.diff(offs) == stride)):
+            rec: NDArray[Any] = np.ndarray(shape=(len(offs),), dtype=dtype, buffer=buf,
+                                           offset=int(offs[0]), strides=(stride,))
+            return {n: np.array(rec[n]) for n in names}
+    return {n: field_at(buf, offs + int(fields[n][1]), fields[n][0]) for n in names}

@@ -42,6 +42,7 @@ from gyrotherm._errors import RunFileError
 from gyrotherm.codecs import Run
 from gyrotherm.readers._common import (
     DEG_PER_RAD,
+    FALLBACK_KEY,
     S_PER_US,
     FloatArray,
     each_instance,
@@ -57,6 +58,7 @@ ACCEL_TOPIC = "sensor_accel"
 STATUS_TOPIC = "vehicle_status"
 ARMED_TOPIC = "actuator_armed"
 ARMING_STATE_ARMED = 2
+TOPICS = [GYRO_TOPIC, ACCEL_TOPIC, STATUS_TOPIC, ARMED_TOPIC]
 """``vehicle_status.arming_state`` of an armed vehicle (PX4 ``msg/VehicleStatus.msg``)."""
 _BUS_TYPES = {0: "unknown", 1: "I2C", 2: "SPI", 3: "UAVCAN", 4: "simulation",
               5: "serial", 6: "MAVLink"}
@@ -82,11 +84,24 @@ def _load(path: Path) -> tuple[Any, str]:
     said = io.StringIO()  # pyulog prints what it finds wrong on stdout: kept, not shown
     try:
         with contextlib.redirect_stdout(said):
-            ulog = ULog(str(path), [GYRO_TOPIC, ACCEL_TOPIC, STATUS_TOPIC, ARMED_TOPIC])
+            ulog = ULog(str(path), TOPICS)
     except Exception as exc:  # pyulog raises ULogException, struct.error, IndexError ...
         raise RunFileError(f"{path}: not a readable PX4 ULog file: {exc}"
                            f"{_pyulog_said(said.getvalue())}") from exc
     return ulog, _pyulog_said(said.getvalue())
+
+
+def _load_fast(path: Path) -> tuple[Any, str, int | None, str]:
+    """The topics decoded by numpy, else by pyulog: (ulog, what pyulog said, bytes cut
+    at the end when known, why pyulog read it or "")."""
+    from gyrotherm.readers._fast_common import Fallback
+    from gyrotherm.readers._fast_ulog import load
+
+    try:
+        fast = load(path, TOPICS)
+    except Fallback as exc:
+        return *_load(path), None, f"read by pyulog: {exc}"
+    return fast, "", fast.bytes_cut_at_end, ""
 
 
 def _pyulog_said(text: str) -> str:
@@ -94,13 +109,16 @@ def _pyulog_said(text: str) -> str:
     return f"; pyulog: {'; '.join(lines)}" if lines else ""
 
 
-def read_ulog(path: str | os.PathLike[str]) -> list[Run]:
+def read_ulog(path: str | os.PathLike[str], *, fast: bool = True) -> list[Run]:
     """Every ``sensor_gyro`` instance in ULog file ``path`` as a :class:`Run`.
 
+    The data messages are decoded by numpy (:mod:`._fast_ulog`); what that does not
+    cover is read by pyulog, with the reason in metadata ``fast_path_fallback``
+    (``fast=False``: pyulog always, the reference the fast path is tested against).
     Raises :class:`RunFileError` naming the file, the topic and what is missing.
     """
     p = Path(path)
-    ulog, said = _load(p)
+    ulog, said, cut_bytes, fallback = _load_fast(p) if fast else (*_load(p), None, "")
     gyros = sorted((d for d in ulog.data_list if d.name == GYRO_TOPIC), key=lambda d: d.multi_id)
     if not gyros and (ulog.file_corruption or said):
         raise RunFileError(
@@ -116,12 +134,14 @@ def read_ulog(path: str | os.PathLike[str]) -> list[Run]:
     accels = {d.multi_id: d for d in ulog.data_list if d.name == ACCEL_TOPIC}
     sha = sha256_of(p)
     corrupt = bool(getattr(ulog, "file_corruption", False))
-    cut_bytes = bytes_cut_at_end(p)
+    if cut_bytes is None:
+        cut_bytes = bytes_cut_at_end(p)
     armed = arming_state(ulog)
     info = getattr(ulog, "msg_info_dict", {}) or {}
     uuid = str(info.get("sys_uuid", "") or "")
     vehicle = {"vehicle_id": f"px4-uuid:{uuid}" if uuid else "",
-               "board": str(info.get("ver_hw", "") or "")}
+               "board": str(info.get("ver_hw", "") or ""),
+               **({FALLBACK_KEY: fallback} if fallback else {})}
     return each_instance(p, [(f"topic {GYRO_TOPIC!r} instance {g.multi_id}",
                               partial(_run, p, g, accels.get(g.multi_id), sha, corrupt,
                                       cut_bytes, armed, vehicle))
