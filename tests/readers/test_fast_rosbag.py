@@ -23,7 +23,7 @@ from fastkit import assert_same_runs, corpus_dir
 from gyrotherm import RunFileError
 from gyrotherm.readers._common import FALLBACK_KEY
 from gyrotherm.readers._fast_common import Fallback
-from gyrotherm.readers._fast_mcap import checked, chunk_messages, summary
+from gyrotherm.readers._fast_mcap import Source, checked, chunk_messages, summary
 from gyrotherm.readers._fast_rosbag import gather
 from gyrotherm.readers._rosbag import read_rosbag
 
@@ -110,16 +110,16 @@ def test_container_equals_the_mcap_librarys_on_real_files(path: Path) -> None:
         ref: dict[int, list[tuple[int, bytes]]] = {}
         for _, channel, message in make_reader(fh).iter_messages(log_time_order=False):
             ref.setdefault(channel.id, []).append((message.log_time, bytes(message.data)))
-    data = memoryview(path.read_bytes())
-    s = summary(data)
-    filebuf = np.frombuffer(data, dtype=np.uint8)
     got: dict[int, list[tuple[int, bytes]]] = {}
-    for chunk in s.chunks:
-        for cid, indexed in chunk_messages(data, filebuf, chunk, sorted(s.channels)):
-            m = checked(cid, [indexed])
-            got.setdefault(cid, []).extend(
-                (int(t), bytes(m.buf[a:a + n])) for t, a, n in zip(m.log_time, m.start, m.size,
-                                                                  strict=True))
+    with path.open("rb") as fh:
+        src = Source(fh)
+        s = summary(src)
+        for chunk in s.chunks:
+            for cid, indexed in chunk_messages(src, chunk, sorted(s.channels)):
+                m = checked(cid, [indexed])
+                got.setdefault(cid, []).extend(
+                    (int(t), bytes(m.buf[a:a + n]))
+                    for t, a, n in zip(m.log_time, m.start, m.size, strict=True))
     assert got == ref and sum(len(v) for v in got.values()) > 0
 
 

@@ -64,7 +64,7 @@ from gyrotherm.readers._common import (
     sort_unique,
     state_at,
 )
-from gyrotherm.readers._fast_common import field_at
+from gyrotherm.readers._fast_common import fields_at
 
 MESSAGES = ("IMU", "IMU2", "IMU3")
 _GYRO = ("GyrX", "GyrY", "GyrZ")
@@ -127,13 +127,12 @@ def _gather(path: Path, log: Any, name: str, listed: NDArray[np.int64], wanted: 
         raise RunFileError(f"{path}: message {name!r}: FMT length {fmt.len} does not match "
                            f"its format {fmt.format!r}")
     buf = np.frombuffer(log.data_map, dtype=np.uint8)
-    fields: dict[str, Any] = dict(dtype.fields or {})
+    raw = fields_at(buf, offs + 3, dtype, tuple(f"f{columns.index(c)}" for c in wanted))
     out: dict[str, FloatArray] = {}
     for c in wanted:
         i = columns.index(c)
         mult = fmt.msg_mults[i]
-        field, at = fields[f"f{i}"][:2]
-        v = field_at(buf, offs + 3 + at, field).astype(np.float64)
+        v = raw.pop(f"f{i}").astype(np.float64)
         out[c] = v * mult if mult is not None else v
     return out, len(listed) - len(offs)
 
@@ -302,7 +301,9 @@ def _parts(p: Path, log: Any) -> tuple[list[tuple[int, str, dict[str, FloatArray
         if "I" not in cols:  # ArduPilot 3.x: the instance is in the message name
             parts.append((MESSAGES.index(name), name, cols))
             continue
-        instances = np.unique(cols["I"]).astype(int)
+        first = cols["I"][0]
+        instances = np.array([int(first)]) if bool(np.all(cols["I"] == first)) else \
+            np.unique(cols["I"]).astype(int)
         for inst in instances:  # one instance: its columns as decoded, not copied
             sel = slice(None) if len(instances) == 1 else cols["I"] == inst
             parts.append((int(inst), name, {c: v[sel] for c, v in cols.items()}))

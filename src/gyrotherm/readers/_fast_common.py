@@ -25,12 +25,12 @@ def field_at(buf: NDArray[np.uint8], offs: NDArray[np.int64], dtype: np.dtype[An
     return view[offs]
 
 
-def fields_at(buf: NDArray[np.uint8], offs: NDArray[np.int64], dtype: np.dtype[Any]
-              ) -> dict[str, NDArray[Any]]:
-    """Every field of the records of ``dtype`` at byte offsets ``offs`` of ``buf``, a
-    column each: a strided view (copied) when the records are evenly spaced, else
-    one gather per field."""
-    names = dtype.names or ()
+def fields_at(buf: NDArray[np.uint8], offs: NDArray[np.int64], dtype: np.dtype[Any],
+              names: tuple[str, ...] | None = None) -> dict[str, NDArray[Any]]:
+    """The fields ``names`` (default all) of the records of ``dtype`` at byte offsets
+    ``offs`` of ``buf``, a column each: a strided view (copied) when the records are
+    evenly spaced, else one gather per field."""
+    names = (dtype.names or ()) if names is None else names
     fields: dict[str, Any] = dict(dtype.fields or {})
     if len(offs) > 1:
         stride = int(offs[1] - offs[0])

@@ -199,20 +199,19 @@ def _index(fh: Any, data: mmap.mmap) -> FastLog:
         idx = chain(cand, types, lengths, len(buf))
         on = cand[idx]
         t_on = types[idx]
+        counts = np.bincount(t_on, minlength=256)
         fmt_offs = on[t_on == FMT_TYPE]
         chained = _fmt_lengths(buf, fmt_offs)
-        used = np.unique(t_on)
+        used = np.flatnonzero(counts)
         if np.array_equal(chained[used], lengths[used]) and np.all(chained[used] >= 0):
             break
         if attempt:
             raise Fallback("the FMT messages on the chain disagree with the lengths")
         lengths = chained  # a false FMT candidate set a length: walk with the chain's
-    present, first = np.unique(t_on, return_index=True)
-    first_use = {int(t): int(on[k]) for t, k in zip(present, first, strict=True)}
-    formats, name_to_id = _formats(buf, fmt_offs, lengths, first_use)
     order = np.argsort(t_on, kind="stable")
-    counts = np.bincount(t_on, minlength=256)
     bounds = np.concatenate([[0], np.cumsum(counts)])
     by_type = on[order]
+    first_use = {int(t): int(by_type[bounds[t]]) for t in used}
+    formats, name_to_id = _formats(buf, fmt_offs, lengths, first_use)
     offsets = [by_type[bounds[t]:bounds[t + 1]] for t in range(256)]
     return FastLog(fh, data, formats, name_to_id, offsets)

@@ -5,11 +5,11 @@ The summary section (found from the footer) lists the schemas, the channels and 
 ``ChunkIndex`` per chunk; each chunk is followed by a ``MessageIndex`` per channel:
 (log time, offset) pairs, one numpy array. The message records at those offsets are
 checked (opcode, length, channel) and their payloads handed to :mod:`._fast_cdr` as
-(start, size) arrays into the chunk's bytes. Chunks are decompressed and their CRC
-checked by rosbags' own ``decompress``; uncompressed chunks are read from the mapped
-file, not copied. Messages are ordered as rosbags yields them: by log time, then the
-chunk's offset, then the record's (messages outside their chunk's declared time range
-dropped, as rosbags does).
+(start, size) arrays into the chunk's bytes. Each chunk is read (``os.pread``: no map
+of the file, whose touched pages would count as resident memory), decompressed and its
+CRC checked by rosbags' own ``decompress``. Messages are ordered as rosbags yields
+them: by log time, then the chunk's offset, then the record's (messages outside their
+chunk's declared time range dropped, as rosbags does).
 
 A file without a summary or chunk index, a channel not CDR, several channels on one
 topic, or any record out of bounds raises :class:`Fallback` (rosbags reads it).
@@ -17,9 +17,11 @@ topic, or any record out of bounds raises :class:`Fallback` (rosbags reads it).
 
 from __future__ import annotations
 
+import os
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import BinaryIO
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,7 +31,8 @@ from gyrotherm.readers._fast_common import Fallback, field_at
 MAGIC = b"\x89MCAP0\r\n"
 _OP_FOOTER, _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE = 0x02, 0x03, 0x04, 0x05
 _OP_MESSAGE_INDEX, _OP_CHUNK_INDEX = 0x07, 0x08
-_MAX_CHUNK = 1 << 31  # bytes: a larger declared chunk is not decompressed here
+_MAX_CHUNK = 1 << 28  # bytes: a larger declared chunk is not decompressed here
+_MAX_SUMMARY = 1 << 28  # bytes of summary section read at most
 IntArray = NDArray[np.int64]
 
 
@@ -59,14 +62,36 @@ class Summary:
     chunks: list[ChunkIndex]
 
 
+class Source:
+    """The file, read where asked (``os.pread``): no map of the whole file, whose pages
+    would count in the process's resident memory (an hour of MCAP is 1.3 GB)."""
+
+    def __init__(self, fh: BinaryIO) -> None:
+        self.fd = fh.fileno()
+        self.size = os.fstat(self.fd).st_size
+
+    def read(self, offset: int, n: int) -> bytes:
+        if offset < 0 or n < 0 or offset + n > self.size:
+            raise Fallback(f"an MCAP record runs past the end of the file at byte {offset}")
+        data = os.pread(self.fd, n, offset)
+        if len(data) != n:
+            raise Fallback(f"a short read at byte {offset}")
+        return data
+
+    def cursor(self, offset: int, n: int) -> _Cursor:
+        return _Cursor(self.read(offset, n), offset)
+
+
 class _Cursor:
-    def __init__(self, data: bytes | memoryview, pos: int, end: int) -> None:
-        self.data, self.pos, self.end = data, pos, end
+    """Little-endian fields of bytes read from the file at ``base``."""
+
+    def __init__(self, data: bytes, base: int) -> None:
+        self.data, self.base, self.pos = data, base, 0
 
     def take(self, n: int) -> bytes:
-        if n < 0 or self.pos + n > self.end:
-            raise Fallback(f"an MCAP record runs past its end at byte {self.pos}")
-        out = bytes(self.data[self.pos:self.pos + n])
+        if n < 0 or self.pos + n > len(self.data):
+            raise Fallback(f"an MCAP record runs past its end at byte {self.base + self.pos}")
+        out = self.data[self.pos:self.pos + n]
         self.pos += n
         return out
 
@@ -80,26 +105,30 @@ class _Cursor:
         except UnicodeDecodeError as exc:
             raise Fallback("an MCAP string not UTF-8") from exc
 
+    def record(self) -> tuple[int, _Cursor]:
+        """The next record: its opcode and a cursor over its body."""
+        op, n = self.u("<B"), self.u("<Q")
+        at = self.base + self.pos
+        return op, _Cursor(self.take(n), at)
 
-def summary(data: memoryview) -> Summary:
-    """Channels (with their schema's name) and chunk indexes of the mapped file."""
-    size = len(data)
-    if size < 2 * len(MAGIC) + 29 or bytes(data[:8]) != MAGIC or bytes(data[-8:]) != MAGIC:
+
+def summary(src: Source) -> Summary:
+    """Channels (with their schema's name) and chunk indexes of the file."""
+    size = src.size
+    if size < 2 * len(MAGIC) + 29 or src.read(0, 8) != MAGIC or src.read(size - 8, 8) != MAGIC:
         raise Fallback("not a complete MCAP file (magic at both ends)")
-    foot = _Cursor(data, size - 8 - 29, size - 8)
+    foot = src.cursor(size - 8 - 29, 29)
     if foot.u("<B") != _OP_FOOTER or foot.u("<Q") != 20:
         raise Fallback("no MCAP footer")
     start = foot.u("<Q")
-    if start == 0:
-        raise Fallback("an MCAP file without a summary section")
-    cur = _Cursor(data, start, size - 8 - 29)
+    if start == 0 or not 8 <= start <= size - 8 - 29 or size - 8 - 29 - start > _MAX_SUMMARY:
+        raise Fallback("an MCAP file without a (readable) summary section")
+    cur = src.cursor(start, size - 8 - 29 - start)
     schemas: dict[int, str] = {}
     channels: dict[int, Channel] = {}
     chunks: list[ChunkIndex] = []
-    while cur.pos < cur.end:
-        op, n = cur.u("<B"), cur.u("<Q")
-        rec = _Cursor(data, cur.pos, cur.pos + n)
-        cur.take(n)
+    while cur.pos < len(cur.data):
+        op, rec = cur.record()
         if op == _OP_SCHEMA:
             sid = rec.u("<H")
             schemas[sid] = rec.text()
@@ -126,8 +155,8 @@ def summary(data: memoryview) -> Summary:
 @dataclass
 class Indexed:
     """One channel's indexed messages of one chunk, before they are checked: record
-    offsets into ``buf`` (the chunk's bytes: the mapped file itself when the chunk is
-    not compressed), the bounds of the chunk's records in ``buf``, and the chunk."""
+    offsets into ``buf`` (the chunk's records, or several chunks' joined), the bounds of
+    the chunk's records in ``buf``, and the chunk."""
 
     buf: NDArray[np.uint8]
     offs: IntArray
@@ -150,15 +179,17 @@ class Messages:
     record: IntArray
 
 
-def chunk_messages(data: memoryview, filebuf: NDArray[np.uint8], chunk: ChunkIndex,
-                   wanted: list[int]) -> Iterator[tuple[int, Indexed]]:
-    """(channel id, its indexed messages) for each ``wanted`` channel in ``chunk``."""
+def chunk_messages(src: Source, chunk: ChunkIndex, wanted: list[int]
+                   ) -> Iterator[tuple[int, Indexed]]:
+    """(channel id, its indexed messages) for each ``wanted`` channel in ``chunk``,
+    the chunk's records read (and decompressed, its CRC checked) once for all."""
     from rosbags.rosbag2.storage_mcap import decompress
 
     present = [c for c in wanted if c in chunk.message_index]
     if not present:
         return
-    head = _Cursor(data, chunk.offset, len(data))
+    head = src.cursor(chunk.offset, min(9 + 40 + len(chunk.compression.encode()),
+                                        src.size - chunk.offset))
     if head.u("<B") != 0x06:
         raise Fallback(f"no MCAP chunk at byte {chunk.offset}")
     head.take(8 + 16)  # record length, message start/end time
@@ -168,32 +199,31 @@ def chunk_messages(data: memoryview, filebuf: NDArray[np.uint8], chunk: ChunkInd
     if (comp, usize, csize) != (chunk.compression, chunk.uncompressed_size,
                                 chunk.compressed_size) or usize > _MAX_CHUNK:
         raise Fallback(f"an MCAP chunk disagreeing with its index at byte {chunk.offset}")
-    if head.pos + csize > len(data):
-        raise Fallback(f"an MCAP chunk cut short at byte {chunk.offset}")
     try:
-        raw = decompress(data[head.pos:head.pos + csize],  # type: ignore[arg-type]
-                         comp, usize, crc)
+        raw = decompress(src.read(head.base + head.pos, csize), comp, usize, crc)
+    except Fallback:
+        raise
     except Exception as exc:  # checksum, size, codec: rosbags says what
         raise Fallback(f"MCAP chunk at byte {chunk.offset}: {exc}") from exc
     if len(raw) != usize:
         raise Fallback(f"an MCAP chunk cut short at byte {chunk.offset}")
-    buf, base = (filebuf, head.pos) if not comp else (np.frombuffer(raw, dtype=np.uint8), 0)
+    buf = np.frombuffer(raw, dtype=np.uint8)
     for cid in present:
-        offs = _message_index(data, chunk.message_index[cid], cid)
-        yield cid, Indexed(buf, offs + base, base, base + usize, chunk)
+        offs = _message_index(src, chunk.message_index[cid], cid, usize)
+        yield cid, Indexed(buf, offs, 0, usize, chunk)
 
 
-def _message_index(data: memoryview, at: int, cid: int) -> IntArray:
-    cur = _Cursor(data, at, len(data))
+def _message_index(src: Source, at: int, cid: int, usize: int) -> IntArray:
+    cur = src.cursor(at, min(15, src.size - at))
     if cur.u("<B") != _OP_MESSAGE_INDEX:
         raise Fallback(f"no MCAP message index at byte {at}")
     cur.u("<Q")
     if cur.u("<H") != cid:
         raise Fallback(f"an MCAP message index for another channel at byte {at}")
     n = cur.u("<I")
-    if n % 16 or cur.pos + n > len(data):
+    if n % 16 or n > 16 * (usize // 31 + 1):  # at most one message per 31 bytes
         raise Fallback(f"a bad MCAP message index at byte {at}")
-    pairs = np.frombuffer(data, dtype="<u8", count=n // 8, offset=cur.pos).reshape(-1, 2)
+    pairs = np.frombuffer(src.read(at + 15, n), dtype="<u8").reshape(-1, 2)
     if np.any(pairs[:, 1] >= 1 << 62):
         raise Fallback(f"an MCAP message index out of its chunk at byte {at}")
     offs: IntArray = pairs[:, 1].astype(np.int64)

@@ -1,14 +1,12 @@
 """The IMU and temperature rows of an indexed ``.mcap`` file, decoded by numpy: the
 fast path of ``_rosbag`` (the same rows, in the same order, as its loop over rosbags'
 messages). The container is read by :mod:`._fast_mcap`, the CDR by :mod:`._fast_cdr`;
-messages of uncompressed chunks are decoded a few MiB of the file at a time (fewer
-numpy calls than per chunk, still in cache), compressed chunks one at a time.
+the chunks' messages are decoded a few MiB of chunks at a time (fewer numpy calls than
+per chunk, still in cache).
 """
 
 from __future__ import annotations
 
-import contextlib
-import mmap
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -18,11 +16,18 @@ from numpy.typing import NDArray
 
 from gyrotherm.readers._fast_cdr import decode_imu, decode_temperature
 from gyrotherm.readers._fast_common import Fallback
-from gyrotherm.readers._fast_mcap import Indexed, Messages, checked, chunk_messages, summary
+from gyrotherm.readers._fast_mcap import (
+    Indexed,
+    Messages,
+    Source,
+    checked,
+    chunk_messages,
+    summary,
+)
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
 TEMPERATURE_TYPE = "sensor_msgs/msg/Temperature"
-_GROUP = 1 << 23  # bytes of uncompressed chunks decoded together (in cache, few calls)
+_GROUP = 1 << 23  # bytes of chunks decoded together (in cache, few numpy calls)
 IntArray = NDArray[np.int64]
 
 
@@ -34,18 +39,13 @@ def gather(path: Path, imu_topics: list[str], temp_topics: list[str]
     temperature rows per topic ((n, 2): stamp ns as float, °C), and per IMU topic the
     count of zero stamps (replaced by the log time)."""
     with path.open("rb") as fh:
-        mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
-        try:
-            return _gather(memoryview(mm), imu_topics, temp_topics)
-        finally:
-            with contextlib.suppress(BufferError):  # numpy views left to the collector
-                mm.close()
+        return _gather(Source(fh), imu_topics, temp_topics)
 
 
-def _gather(data: memoryview, imu_topics: list[str], temp_topics: list[str]
+def _gather(src: Source, imu_topics: list[str], temp_topics: list[str]
             ) -> tuple[dict[tuple[str, str], tuple[IntArray, NDArray[np.float64]]],
                        dict[str, NDArray[np.float64]], dict[str, int]]:
-    s = summary(data)
+    s = summary(src)
     want = {IMU_TYPE: imu_topics, TEMPERATURE_TYPE: temp_topics}
     ids: dict[int, tuple[str, str]] = {}
     for msgtype, topics in want.items():
@@ -54,20 +54,20 @@ def _gather(data: memoryview, imu_topics: list[str], temp_topics: list[str]
             if len(chans) != 1 or chans[0].schema != msgtype or chans[0].encoding != "cdr":
                 raise Fallback(f"topic {topic!r}: not one CDR {msgtype} channel")
             ids[chans[0].id] = (topic, msgtype)
-    filebuf = np.frombuffer(data, dtype=np.uint8)
     parts: dict[int, list[_Part]] = {cid: [] for cid in ids}
-    pending: dict[int, list[Indexed]] = {cid: [] for cid in ids}
+    pending: list[tuple[NDArray[np.uint8], list[tuple[int, Indexed]]]] = []
+    held = 0
     for chunk in s.chunks:
-        for cid, m in chunk_messages(data, filebuf, chunk, sorted(ids)):
-            group = pending[cid]
-            if group and (m.buf is not filebuf or group[-1].buf is not filebuf
-                          or m.hi - group[0].lo > _GROUP):
-                parts[cid].append(_decode(checked(cid, group), ids[cid][1]))
-                group.clear()
-            group.append(m)
-    for cid, group in pending.items():
-        if group:
-            parts[cid].append(_decode(checked(cid, group), ids[cid][1]))
+        found = list(chunk_messages(src, chunk, sorted(ids)))
+        if not found:
+            continue
+        if held + chunk.uncompressed_size > _GROUP and pending:
+            _flush(pending, ids, parts)
+            held = 0
+        pending.append((found[0][1].buf, found))
+        held += chunk.uncompressed_size
+    if pending:
+        _flush(pending, ids, parts)
     imu: dict[tuple[str, str], tuple[IntArray, NDArray[np.float64]]] = {}
     temps: dict[str, NDArray[np.float64]] = {}
     missing: dict[str, int] = {}
@@ -85,6 +85,24 @@ def _gather(data: memoryview, imu_topics: list[str], temp_topics: list[str]
             sel = p.frame == k
             imu[(topic, frame)] = (ns[sel], p.values[sel])
     return imu, temps, missing
+
+
+def _flush(pending: list[tuple[NDArray[np.uint8], list[tuple[int, Indexed]]]],
+           ids: dict[int, tuple[str, str]], parts: dict[int, list[_Part]]) -> None:
+    """Decode the pending chunks' messages: their bytes joined into one buffer (a few
+    MiB: few numpy calls, still in cache), each channel's messages checked and decoded
+    at once."""
+    buf = np.concatenate([b for b, _ in pending]) if len(pending) > 1 else pending[0][0]
+    by_channel: dict[int, list[Indexed]] = {}
+    base = 0
+    for b, found in pending:
+        for cid, m in found:
+            by_channel.setdefault(cid, []).append(
+                Indexed(buf, m.offs + base, m.lo + base, m.hi + base, m.chunk))
+        base += len(b)
+    pending.clear()
+    for cid, group in by_channel.items():
+        parts[cid].append(_decode(checked(cid, group), ids[cid][1]))
 
 
 @dataclass

@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from gyrotherm.readers._fast_common import Fallback, fields_at
+from gyrotherm.readers._fast_common import Fallback, field_at, fields_at
 
 HEADER = 16
 MAX_STEPS = 1 << 20
@@ -97,7 +97,7 @@ def load(path: Path, topics: list[str]) -> FastULog:
 
 
 def _u16(buf: NDArray[np.uint8], offs: IntArray) -> IntArray:
-    out: IntArray = np.asarray(buf[offs], np.int64) | np.asarray(buf[offs + 1], np.int64) << 8
+    out: IntArray = field_at(buf, offs, np.dtype("<u2")).astype(np.int64)
     return out
 
 
@@ -126,6 +126,7 @@ class _Candidates:
         self.sizes = np.full((1 << 16, 2), -1, dtype=np.int64)  # -1: any size
         self.pending = False
         self.at = np.zeros(0, np.int64)
+        self.at_ids = np.zeros(0, np.int64)
         self.breaks = np.zeros(0, np.int64)
         self.succ = np.zeros(0, np.int64)
 
@@ -139,25 +140,30 @@ class _Candidates:
         sizes = self.sizes[self.ids]
         fits = (self.size >= 2) & ((sizes[:, 0] < 0) | (self.size == sizes[:, 0])
                                    | (self.size == sizes[:, 1]))
-        new = self.all[(after >= 0) & (self.all > after) & fits]
+        keep = (after >= 0) & (self.all > after) & fits
+        new, new_size = self.all[keep], self.size[keep]
         self.after[:] = -1
         self.pending = False
-        # disjoint (an id is subscribed once), both sorted: a merge of two runs
-        self.at = np.sort(np.concatenate([self.at, new]), kind="stable") if len(self.at) \
-            else new
-        self.succ = self.at + 3 + _u16(self.buf, self.at)
+        if len(self.at):  # disjoint (an id is subscribed once), both sorted: a merge
+            order = np.argsort(np.concatenate([self.at, new]), kind="stable")
+            self.at = np.concatenate([self.at, new])[order]
+            self.at_ids = np.concatenate([self.at_ids, self.ids[keep]])[order]
+            self.succ = np.concatenate([self.succ, new + 3 + new_size])[order]
+        else:
+            self.at, self.at_ids, self.succ = new, self.ids[keep], new + 3 + new_size
         ok = self.succ[:-1] == self.at[1:]
         self.breaks = np.append(np.flatnonzero(~ok), len(self.at) - 1)
 
-    def run_at(self, pos: int) -> tuple[IntArray, int] | None:
-        """The run of chained candidates from ``pos`` and the offset after it."""
+    def run_at(self, pos: int) -> tuple[IntArray, IntArray, int] | None:
+        """The run of chained candidates from ``pos``, their msg_ids and the offset
+        after it."""
         if self.pending and self.buf[pos + 2] == ord("D"):
             self._apply()
         i = int(np.searchsorted(self.at, pos))
         if i == len(self.at) or self.at[i] != pos:
             return None
         j = int(self.breaks[np.searchsorted(self.breaks, i)])
-        return self.at[i:j + 1], int(self.succ[j])
+        return self.at[i:j + 1], self.at_ids[i:j + 1], int(self.succ[j])
 
 
 def _load(buf: NDArray[np.uint8], head: Any, topics: list[str]) -> FastULog:
@@ -170,6 +176,7 @@ def _load(buf: NDArray[np.uint8], head: Any, topics: list[str]) -> FastULog:
     subs: dict[int, Any] = {}
     filtered: set[int] = set()
     chained: list[IntArray] = []
+    chained_ids: list[IntArray] = []
     pos, data_started = HEADER, False
     for _ in range(MAX_STEPS):
         if pos + 3 > end:
@@ -177,7 +184,8 @@ def _load(buf: NDArray[np.uint8], head: Any, topics: list[str]) -> FastULog:
         run = cands.run_at(pos)
         if run is not None:  # data of the topics read: a run at once
             chained.append(run[0])
-            pos = run[1]
+            chained_ids.append(run[1])
+            pos = run[2]
             continue
         size, kind = int(buf[pos]) | int(buf[pos + 1]) << 8, int(buf[pos + 2])
         if pos + 3 + size > end:
@@ -217,9 +225,10 @@ def _load(buf: NDArray[np.uint8], head: Any, topics: list[str]) -> FastULog:
     else:
         raise Fallback(f"more than {MAX_STEPS} messages to step over")
     offs = np.concatenate(chained) if chained else np.zeros(0, np.int64)
-    ids = _u16(buf, offs + 3)
-    order = np.argsort(ids, kind="stable")
-    offs, ids = offs[order], ids[order]
+    ids = np.concatenate(chained_ids) if chained else np.zeros(0, np.int64)
+    if len(ids) and not bool(np.all(ids[1:] >= ids[:-1])):
+        order = np.argsort(ids, kind="stable")
+        offs, ids = offs[order], ids[order]
     data_list = []
     for mid, sub in subs.items():
         lo, hi = np.searchsorted(ids, [mid, mid + 1])
