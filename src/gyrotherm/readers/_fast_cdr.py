@@ -33,6 +33,9 @@ from gyrotherm.readers._fast_common import Fallback, field_at
 IntArray = NDArray[np.int64]
 _IMU_SIZE, _TEMP_SIZE = 296, 16
 _F8 = np.dtype("<f8")
+_HEAD = np.dtype([("enc", "<u4"), ("sec", "<i4"), ("nsec", "<u4"), ("n", "<u4")])
+_VEC = np.dtype([("v", "<f8", (3,)), ("cov0", "<f8")])
+"""A Vector3 (@104 ω, @200 a) and the first element of the covariance after it."""
 
 
 @dataclass
@@ -51,13 +54,13 @@ def _header(buf: NDArray[np.uint8], start: IntArray, size: IntArray, body_size: 
         return Header(np.zeros(0, np.int64), np.zeros(0, np.intp), [], np.zeros(0, np.int64))
     if np.any(size < 16):
         raise Fallback("a CDR message shorter than its header")
-    enc = field_at(buf, start, np.dtype("<u4"))
-    if np.any(enc & 0xFFFF != 0x0100):  # bytes 00 01: little endian (options ignored)
+    head = field_at(buf, start, _HEAD)  # one gather for the fixed part
+    if np.any(head["enc"] & 0xFFFF != 0x0100):  # bytes 00 01: little endian (options ignored)
         raise Fallback("a CDR message not little-endian CDR")
     d = start + 4
-    sec = field_at(buf, d, np.dtype("<i4")).astype(np.int64)
-    nsec = field_at(buf, d + 4, np.dtype("<u4")).astype(np.int64)
-    n = field_at(buf, d + 8, np.dtype("<u4")).astype(np.int64)
+    sec = head["sec"].astype(np.int64)
+    nsec = head["nsec"].astype(np.int64)
+    n = head["n"].astype(np.int64)
     if np.any(n < 1) or np.any(12 + n > size - 4):
         raise Fallback("a CDR frame_id length out of bounds")
     if np.any(buf[d + 12 + n - 1] != 0):
@@ -111,14 +114,17 @@ class ImuColumns:
     accel_cov0: NDArray[np.float64]
 
 
-def decode_imu(buf: NDArray[np.uint8], start: IntArray, size: IntArray) -> ImuColumns:
-    """The ``Imu`` messages at ``start`` (``size`` bytes each) of ``buf``."""
+def decode_imu(buf: NDArray[np.uint8], start: IntArray, size: IntArray,
+               out: NDArray[np.float64] | None = None) -> ImuColumns:
+    """The ``Imu`` messages at ``start`` (``size`` bytes each) of ``buf`` (the six
+    values written into ``out`` when given, shape (n, 6))."""
     h = _header(buf, start, size, _IMU_SIZE)
-    values = np.empty((len(start), 6))
-    for k, at in enumerate((104, 112, 120, 200, 208, 216)):
-        values[:, k] = field_at(buf, h.body + at, _F8)
-    return ImuColumns(h, values, field_at(buf, h.body + 128, _F8),
-                      field_at(buf, h.body + 224, _F8))
+    values = np.empty((len(start), 6)) if out is None else out
+    w = field_at(buf, h.body + 104, _VEC)  # a vector and its covariance's first element
+    a = field_at(buf, h.body + 200, _VEC)
+    values[:, :3] = w["v"]
+    values[:, 3:] = a["v"]
+    return ImuColumns(h, values, w["cov0"], a["cov0"])
 
 
 def decode_temperature(buf: NDArray[np.uint8], start: IntArray, size: IntArray

@@ -21,8 +21,14 @@ def field_at(buf: NDArray[np.uint8], offs: NDArray[np.int64], dtype: np.dtype[An
     n = len(buf) - dtype.itemsize + 1
     if n <= 0:
         return np.zeros(0, dtype=dtype)
-    view: NDArray[Any] = np.ndarray(shape=(n,), dtype=dtype, buffer=buf, strides=(1,))
-    return view[offs]
+    if dtype.fields is None and dtype.subdtype is None:
+        view: NDArray[Any] = np.ndarray(shape=(n,), dtype=dtype, buffer=buf, strides=(1,))
+        return view[offs]
+    # a record: gathered as opaque bytes (numpy copies those 4x faster than a
+    # structured item), then seen as the record
+    raw = np.dtype(f"V{dtype.itemsize}")
+    whole: NDArray[Any] = np.ndarray(shape=(n,), dtype=raw, buffer=buf, strides=(1,))
+    return whole[offs].view(dtype)
 
 
 def fields_at(buf: NDArray[np.uint8], offs: NDArray[np.int64], dtype: np.dtype[Any],
@@ -38,4 +44,7 @@ def fields_at(buf: NDArray[np.uint8], offs: NDArray[np.int64], dtype: np.dtype[A
             rec: NDArray[Any] = np.ndarray(shape=(len(offs),), dtype=dtype, buffer=buf,
                                            offset=int(offs[0]), strides=(stride,))
             return {n: np.array(rec[n]) for n in names}
+    if len(names) > 2:  # one gather of the whole records
+        whole = field_at(buf, offs, dtype)
+        return {n: np.array(whole[n]) for n in names}
     return {n: field_at(buf, offs + int(fields[n][1]), fields[n][0]) for n in names}

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import os
 import struct
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import BinaryIO
 
@@ -34,6 +33,10 @@ _OP_MESSAGE_INDEX, _OP_CHUNK_INDEX = 0x07, 0x08
 _MAX_CHUNK = 1 << 28  # bytes: a larger declared chunk is not decompressed here
 _MAX_SUMMARY = 1 << 28  # bytes of summary section read at most
 IntArray = NDArray[np.int64]
+_RECORD = np.dtype({"names": ["op", "length", "channel", "log_time"],
+                    "formats": ["u1", "<u8", "<u2", "<u8"], "offsets": [0, 1, 9, 15],
+                    "itemsize": 23})
+"""A Message record's opcode, length, channel id and log time."""
 
 
 @dataclass
@@ -153,10 +156,21 @@ def summary(src: Source) -> Summary:
 
 
 @dataclass
+class Plan:
+    """A chunk holding wanted channels: where its records are in the file, how they
+    are stored, and each wanted channel's record offsets (from its message index)."""
+
+    chunk: ChunkIndex
+    data_at: int  # file offset of the (compressed) records
+    crc: int
+    offs: dict[int, IntArray]
+
+
+@dataclass
 class Indexed:
     """One channel's indexed messages of one chunk, before they are checked: record
-    offsets into ``buf`` (the chunk's records, or several chunks' joined), the bounds of
-    the chunk's records in ``buf``, and the chunk."""
+    offsets into ``buf`` (several chunks' records), the bounds of the chunk's records
+    in ``buf``, and the chunk."""
 
     buf: NDArray[np.uint8]
     offs: IntArray
@@ -168,26 +182,20 @@ class Indexed:
 @dataclass
 class Messages:
     """Checked messages of one channel (of one or more chunks sharing ``buf``):
-    payload (start, size) into ``buf``, log times, and the sort key after the log
-    time (chunk offset, record offset)."""
+    payload (start, size) into ``buf`` and log times, in file order."""
 
     buf: NDArray[np.uint8]
     start: IntArray
     size: IntArray
     log_time: IntArray
-    chunk: IntArray
-    record: IntArray
 
 
-def chunk_messages(src: Source, chunk: ChunkIndex, wanted: list[int]
-                   ) -> Iterator[tuple[int, Indexed]]:
-    """(channel id, its indexed messages) for each ``wanted`` channel in ``chunk``,
-    the chunk's records read (and decompressed, its CRC checked) once for all."""
-    from rosbags.rosbag2.storage_mcap import decompress
-
+def plan(src: Source, chunk: ChunkIndex, wanted: list[int]) -> Plan | None:
+    """The chunk's header checked against its index and the ``wanted`` channels'
+    message indexes; None when it holds none of them."""
     present = [c for c in wanted if c in chunk.message_index]
     if not present:
-        return
+        return None
     head = src.cursor(chunk.offset, min(9 + 40 + len(chunk.compression.encode()),
                                         src.size - chunk.offset))
     if head.u("<B") != 0x06:
@@ -199,18 +207,45 @@ def chunk_messages(src: Source, chunk: ChunkIndex, wanted: list[int]
     if (comp, usize, csize) != (chunk.compression, chunk.uncompressed_size,
                                 chunk.compressed_size) or usize > _MAX_CHUNK:
         raise Fallback(f"an MCAP chunk disagreeing with its index at byte {chunk.offset}")
-    try:
-        raw = decompress(src.read(head.base + head.pos, csize), comp, usize, crc)
-    except Fallback:
-        raise
-    except Exception as exc:  # checksum, size, codec: rosbags says what
-        raise Fallback(f"MCAP chunk at byte {chunk.offset}: {exc}") from exc
-    if len(raw) != usize:
+    at = head.base + head.pos
+    if at + csize > src.size:
         raise Fallback(f"an MCAP chunk cut short at byte {chunk.offset}")
-    buf = np.frombuffer(raw, dtype=np.uint8)
-    for cid in present:
-        offs = _message_index(src, chunk.message_index[cid], cid, usize)
-        yield cid, Indexed(buf, offs, 0, usize, chunk)
+    return Plan(chunk, at, crc, {c: _message_index(src, chunk.message_index[c], c, usize)
+                                 for c in present})
+
+
+def load(src: Source, plans: list[Plan]) -> list[tuple[int, Indexed]]:
+    """The records of ``plans`` (chunks in file order) in one buffer: one read of the
+    file's span when none is compressed, else each chunk decompressed and joined; each
+    chunk's size and CRC checked by rosbags' ``decompress``."""
+    from rosbags.rosbag2.storage_mcap import decompress
+
+    def checked_raw(raw: bytes | memoryview, p: Plan) -> bytes | memoryview:
+        c = p.chunk
+        try:
+            out: bytes | memoryview = decompress(raw, c.compression,  # type: ignore[arg-type]
+                                                 c.uncompressed_size, p.crc)
+        except Exception as exc:  # checksum, size, codec: rosbags says what
+            raise Fallback(f"MCAP chunk at byte {c.offset}: {exc}") from exc
+        if len(out) != c.uncompressed_size:
+            raise Fallback(f"an MCAP chunk cut short at byte {c.offset}")
+        return out
+
+    if all(not p.chunk.compression for p in plans):
+        first, last = plans[0], plans[-1]
+        span = src.read(first.data_at, last.data_at + last.chunk.compressed_size
+                        - first.data_at)
+        view = memoryview(span)
+        bases = [p.data_at - first.data_at for p in plans]
+        for p, base in zip(plans, bases, strict=True):
+            checked_raw(view[base:base + p.chunk.compressed_size], p)
+        buf = np.frombuffer(span, dtype=np.uint8)
+    else:
+        raws = [checked_raw(src.read(p.data_at, p.chunk.compressed_size), p) for p in plans]
+        bases = np.concatenate([[0], np.cumsum([len(r) for r in raws])]).tolist()[:-1]
+        buf = np.frombuffer(b"".join(raws), dtype=np.uint8)
+    return [(cid, Indexed(buf, offs + base, base, base + p.chunk.uncompressed_size, p.chunk))
+            for p, base in zip(plans, bases, strict=True) for cid, offs in p.offs.items()]
 
 
 def _message_index(src: Source, at: int, cid: int, usize: int) -> IntArray:
@@ -245,18 +280,18 @@ def checked(cid: int, group: list[Indexed]) -> Messages:
     if np.any(offs < lo) or np.any(offs + 31 > hi) or \
             (len(offs) > 1 and bool(np.any(np.diff(offs) <= 0))):
         raise Fallback(f"an MCAP message index out of its chunk {where}")
-    if np.any(buf[offs] != _OP_MESSAGE) or \
-            np.any(field_at(buf, offs + 9, np.dtype("<u2")) != cid):
+    rec = field_at(buf, offs, _RECORD)  # one gather for the record's fixed fields
+    if np.any(rec["op"] != _OP_MESSAGE) or np.any(rec["channel"] != cid):
         raise Fallback(f"an MCAP message index not pointing at its messages {where}")
-    length = field_at(buf, offs + 1, np.dtype("<u8"))
+    length = rec["length"]
     if np.any(length < 22) or np.any(length > hi - offs - 9):
         raise Fallback(f"an MCAP message record out of its chunk {where}")
-    log_time = field_at(buf, offs + 15, np.dtype("<u8"))
+    log_time = rec["log_time"]
     if np.any(log_time >= 1 << 63):
         raise Fallback("an MCAP log time beyond int64")
     t = log_time.astype(np.int64)
     keep = (t >= each([g.chunk.start_time for g in group])) & \
         (t <= each([g.chunk.end_time for g in group]))
-    chunk = each([g.chunk.offset for g in group])
-    return Messages(buf, offs[keep] + 31, length[keep].astype(np.int64) - 22, t[keep],
-                    chunk[keep], (offs - lo)[keep])
+    if bool(keep.all()):
+        return Messages(buf, offs + 31, length.astype(np.int64) - 22, t)
+    return Messages(buf, offs[keep] + 31, length[keep].astype(np.int64) - 22, t[keep])

@@ -7,9 +7,7 @@ per chunk, still in cache).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -19,15 +17,17 @@ from gyrotherm.readers._fast_common import Fallback
 from gyrotherm.readers._fast_mcap import (
     Indexed,
     Messages,
+    Plan,
     Source,
     checked,
-    chunk_messages,
+    load,
+    plan,
     summary,
 )
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
 TEMPERATURE_TYPE = "sensor_msgs/msg/Temperature"
-_GROUP = 1 << 23  # bytes of chunks decoded together (in cache, few numpy calls)
+_GROUP = 1 << 22  # bytes of chunks decoded together (in cache, few numpy calls)
 IntArray = NDArray[np.int64]
 
 
@@ -54,105 +54,88 @@ def _gather(src: Source, imu_topics: list[str], temp_topics: list[str]
             if len(chans) != 1 or chans[0].schema != msgtype or chans[0].encoding != "cdr":
                 raise Fallback(f"topic {topic!r}: not one CDR {msgtype} channel")
             ids[chans[0].id] = (topic, msgtype)
-    parts: dict[int, list[_Part]] = {cid: [] for cid in ids}
-    pending: list[tuple[NDArray[np.uint8], list[tuple[int, Indexed]]]] = []
+    plans = [q for q in (plan(src, c, sorted(ids)) for c in s.chunks) if q is not None]
+    out = {cid: _Out(sum(len(q.offs.get(cid, ())) for q in plans), msgtype)
+           for cid, (_, msgtype) in ids.items()}
+    group: list[Plan] = []
     held = 0
-    for chunk in s.chunks:
-        found = list(chunk_messages(src, chunk, sorted(ids)))
-        if not found:
-            continue
-        if held + chunk.uncompressed_size > _GROUP and pending:
-            _flush(pending, ids, parts)
-            held = 0
-        pending.append((found[0][1].buf, found))
-        held += chunk.uncompressed_size
-    if pending:
-        _flush(pending, ids, parts)
+    for q in [*plans, None]:
+        if group and (q is None or held + q.chunk.uncompressed_size > _GROUP):
+            by_channel: dict[int, list[Indexed]] = {}
+            for cid, m in load(src, group):
+                by_channel.setdefault(cid, []).append(m)
+            for cid, ms in by_channel.items():
+                out[cid].add(checked(cid, ms))
+            group, held = [], 0
+        if q is not None:
+            group.append(q)
+            held += q.chunk.uncompressed_size
     imu: dict[tuple[str, str], tuple[IntArray, NDArray[np.float64]]] = {}
     temps: dict[str, NDArray[np.float64]] = {}
     missing: dict[str, int] = {}
     for cid, (topic, msgtype) in ids.items():
-        p = _joined(parts.pop(cid))
-        zero = p.stamp == 0
+        o = out.pop(cid).done()
+        zero = o.stamp == 0
         if msgtype == TEMPERATURE_TYPE:
-            ns = np.where(zero, p.log_time, p.stamp)
-            temps[topic] = np.column_stack([ns.astype(np.float64), p.values[:, 0]])
+            ns = np.where(zero, o.log_time, o.stamp)
+            temps[topic] = np.column_stack([ns.astype(np.float64), o.values[:, 0]])
             continue
         if zero.any():
             missing[topic] = int(np.count_nonzero(zero))
-        ns = np.where(zero, p.log_time, p.stamp)
-        for k, frame in enumerate(p.frames):
-            sel = p.frame == k
-            imu[(topic, frame)] = (ns[sel], p.values[sel])
+        ns = np.where(zero, o.log_time, o.stamp) if missing.get(topic) else o.stamp
+        for k, frame in enumerate(o.frames):
+            if len(o.frames) == 1:
+                imu[(topic, frame)] = (ns, o.values)
+                continue
+            sel = o.frame == k
+            imu[(topic, frame)] = (ns[sel], o.values[sel])
     return imu, temps, missing
 
 
-def _flush(pending: list[tuple[NDArray[np.uint8], list[tuple[int, Indexed]]]],
-           ids: dict[int, tuple[str, str]], parts: dict[int, list[_Part]]) -> None:
-    """Decode the pending chunks' messages: their bytes joined into one buffer (a few
-    MiB: few numpy calls, still in cache), each channel's messages checked and decoded
-    at once."""
-    buf = np.concatenate([b for b, _ in pending]) if len(pending) > 1 else pending[0][0]
-    by_channel: dict[int, list[Indexed]] = {}
-    base = 0
-    for b, found in pending:
-        for cid, m in found:
-            by_channel.setdefault(cid, []).append(
-                Indexed(buf, m.offs + base, m.lo + base, m.hi + base, m.chunk))
-        base += len(b)
-    pending.clear()
-    for cid, group in by_channel.items():
-        parts[cid].append(_decode(checked(cid, group), ids[cid][1]))
+class _Out:
+    """One channel's decoded messages, filled a group of chunks at a time into arrays
+    of the size its message indexes announce (no joining at the end)."""
 
+    def __init__(self, n: int, msgtype: str) -> None:
+        self.msgtype = msgtype
+        self.stamp = np.empty(n, dtype=np.int64)
+        self.log_time = np.empty(n, dtype=np.int64)
+        self.frame = np.empty(n, dtype=np.intp)
+        self.values = np.empty((n, 1 if msgtype == TEMPERATURE_TYPE else 6))
+        self.frames: list[str] = []
+        self.n = 0
 
-@dataclass
-class _Part:
-    """Decoded messages of one channel (a chunk's, or all joined in rosbags' order)."""
+    def add(self, m: Messages) -> None:
+        k = len(m.start)
+        at = slice(self.n, self.n + k)
+        if self.msgtype == TEMPERATURE_TYPE:
+            h, temp = decode_temperature(m.buf, m.start, m.size)
+            self.values[at, 0] = temp
+        else:
+            cols = decode_imu(m.buf, m.start, m.size, out=self.values[at])
+            h = cols.header
+            self.values[at][cols.rate_cov0 == -1.0, :3] = np.nan
+            self.values[at][cols.accel_cov0 == -1.0, 3:] = np.nan
+        self.stamp[at] = h.stamp_ns
+        self.log_time[at] = m.log_time
+        for f in h.frames:
+            if f not in self.frames:
+                self.frames.append(f)
+        if h.frames == self.frames[:1]:
+            self.frame[at] = 0
+        else:
+            remap = np.array([self.frames.index(f) for f in h.frames] or [0], dtype=np.intp)
+            self.frame[at] = remap[h.frame]
+        self.n += k
 
-    stamp: IntArray
-    frame: NDArray[np.intp]
-    frames: list[str]
-    values: NDArray[np.float64]  # (n, 6) for Imu, (n, 1) for Temperature
-    log_time: IntArray
-    chunk: IntArray
-    record: IntArray
-
-
-def _decode(m: Messages, msgtype: str) -> _Part:
-    if msgtype == TEMPERATURE_TYPE:
-        h, temp = decode_temperature(m.buf, m.start, m.size)
-        values = temp[:, None]
-    else:
-        cols = decode_imu(m.buf, m.start, m.size)
-        h, values = cols.header, cols.values
-        values[cols.rate_cov0 == -1.0, :3] = np.nan
-        values[cols.accel_cov0 == -1.0, 3:] = np.nan
-    return _Part(h.stamp_ns, h.frame, h.frames, values, m.log_time, m.chunk, m.record)
-
-
-def _joined(parts: list[_Part]) -> _Part:
-    """The chunks' parts as one, frame ids renumbered, ordered as rosbags yields them
-    (log time, chunk offset, record offset)."""
-    frames: list[str] = []
-    codes: list[NDArray[np.intp]] = []
-    for q in parts:
-        for f in q.frames:
-            if f not in frames:
-                frames.append(f)
-        remap = np.array([frames.index(f) for f in q.frames] or [0], dtype=np.intp)
-        codes.append(remap[q.frame])
-
-    def cat(arrays: list[NDArray[Any]], empty: NDArray[Any]) -> NDArray[Any]:
-        return np.concatenate(arrays) if arrays else empty
-
-    z = np.zeros(0, dtype=np.int64)
-    width = parts[0].values.shape[1] if parts else 1
-    out = _Part(cat([q.stamp for q in parts], z), cat(codes, np.zeros(0, np.intp)), frames,
-                cat([q.values for q in parts], np.zeros((0, width))),
-                cat([q.log_time for q in parts], z), cat([q.chunk for q in parts], z),
-                cat([q.record for q in parts], z))
-    if len(out.log_time) > 1 and bool(np.any(np.diff(out.log_time) < 0)):
-        order = np.lexsort((out.record, out.chunk, out.log_time))
-        out = _Part(out.stamp[order], out.frame[order], frames, out.values[order],
-                    out.log_time[order], out.chunk[order], out.record[order])
-    return out
+    def done(self) -> _Out:
+        """Trimmed to what was decoded (messages outside their chunk's time range are
+        left out), in rosbags' order: by log time, ties in file order (chunk, record)."""
+        n = self.n
+        self.stamp, self.log_time = self.stamp[:n], self.log_time[:n]
+        self.frame, self.values = self.frame[:n], self.values[:n]
+        if n > 1 and bool(np.any(self.log_time[1:] < self.log_time[:-1])):
+            order = np.argsort(self.log_time, kind="stable")
+            self.stamp, self.log_time = self.stamp[order], self.log_time[order]
+            self.frame, self.values = self.frame[order], self.values[order]
+        return self
