@@ -96,20 +96,26 @@ def load(path: Path, topics: list[str]) -> FastULog:
                 mm.close()
 
 
-def _u16(buf: NDArray[np.uint8], offs: IntArray) -> IntArray:
-    out: IntArray = field_at(buf, offs, np.dtype("<u2")).astype(np.int64)
-    return out
+_D_HEAD = np.dtype([("size", "<u2"), ("type", "u1"), ("id", "<u2")])
 
 
-def _d_positions(buf: NDArray[np.uint8]) -> IntArray:
-    """Offsets of every message that could be a whole ``D`` inside the file (its type
-    byte; its size taken as it reads)."""
-    found = []
+def _d_positions(buf: NDArray[np.uint8]) -> tuple[IntArray, NDArray[np.int32],
+                                                  NDArray[np.uint16]]:
+    """Offsets, sizes and msg_ids of every message that could be a whole ``D`` inside
+    the file (found by its type byte; one gather of the 5-byte header each)."""
+    found, sizes, ids = [], [], []
     for start in range(2, len(buf), 1 << 24):
-        at = np.flatnonzero(buf[start:start + (1 << 24)] == ord("D")) + start - 2
-        at = at[at + 5 <= len(buf)].astype(np.int64)
-        found.append(at[at + 3 + _u16(buf, at) <= len(buf)])
-    return np.concatenate(found) if found else np.zeros(0, np.int64)
+        at = np.flatnonzero(buf[start:start + (1 << 24)] == ord("D")) + (start - 2)
+        at = at[(at >= 0) & (at + 5 <= len(buf))].astype(np.int64)
+        head = field_at(buf, at, _D_HEAD)
+        size = head["size"].astype(np.int32)
+        whole = at + 3 + size <= len(buf)
+        found.append(at[whole])
+        sizes.append(size[whole])
+        ids.append(head["id"][whole])
+    if not found:
+        return np.zeros(0, np.int64), np.zeros(0, np.int32), np.zeros(0, np.uint16)
+    return np.concatenate(found), np.concatenate(sizes), np.concatenate(ids)
 
 
 class _Candidates:
@@ -119,11 +125,10 @@ class _Candidates:
 
     def __init__(self, buf: NDArray[np.uint8]) -> None:
         self.buf = buf
-        self.all = _d_positions(buf)
-        self.size = _u16(buf, self.all)
-        self.ids = _u16(buf, self.all + 3)
+        self.all, self.size, self.ids = _d_positions(buf)
         self.after = np.full(1 << 16, -1, dtype=np.int64)  # subscribed at (pending)
-        self.sizes = np.full((1 << 16, 2), -1, dtype=np.int64)  # -1: any size
+        # sizes a pending subscription's data may have: -1 any (≥ 2), -2 none (not pending)
+        self.sizes = np.full((2, 1 << 16), -2, dtype=np.int32)
         self.pending = False
         self.at = np.zeros(0, np.int64)
         self.at_ids = np.zeros(0, np.int64)
@@ -132,25 +137,25 @@ class _Candidates:
 
     def add(self, msg_id: int, sizes: tuple[int, int] | None, after: int) -> None:
         self.after[msg_id] = after
-        self.sizes[msg_id] = sizes if sizes is not None else (-1, -1)
+        self.sizes[:, msg_id] = sizes if sizes is not None else (-1, -1)
         self.pending = True
 
     def _apply(self) -> None:
-        after = self.after[self.ids]
-        sizes = self.sizes[self.ids]
-        fits = (self.size >= 2) & ((sizes[:, 0] < 0) | (self.size == sizes[:, 0])
-                                   | (self.size == sizes[:, 1]))
-        keep = (after >= 0) & (self.all > after) & fits
+        lo, hi = self.sizes[0][self.ids], self.sizes[1][self.ids]
+        fits = (self.size == lo) | (self.size == hi) | ((lo == -1) & (self.size >= 2))
+        keep = fits & (self.all > self.after[self.ids])
         new, new_size = self.all[keep], self.size[keep]
         self.after[:] = -1
+        self.sizes[:] = -2
         self.pending = False
         if len(self.at):  # disjoint (an id is subscribed once), both sorted: a merge
             order = np.argsort(np.concatenate([self.at, new]), kind="stable")
             self.at = np.concatenate([self.at, new])[order]
-            self.at_ids = np.concatenate([self.at_ids, self.ids[keep]])[order]
+            self.at_ids = np.concatenate([self.at_ids, self.ids[keep].astype(np.int64)])[order]
             self.succ = np.concatenate([self.succ, new + 3 + new_size])[order]
         else:
-            self.at, self.at_ids, self.succ = new, self.ids[keep], new + 3 + new_size
+            self.at, self.at_ids = new, self.ids[keep].astype(np.int64)
+            self.succ = new + 3 + new_size
         ok = self.succ[:-1] == self.at[1:]
         self.breaks = np.append(np.flatnonzero(~ok), len(self.at) - 1)
 
