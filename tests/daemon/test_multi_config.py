@@ -70,7 +70,8 @@ def test_consistency_off_and_single_table() -> None:
 
 
 @pytest.mark.parametrize(("doc", "message"), [
-    (_doc(IMU0, {"signals": {"rate_frame_id": 0x130}}), r"\[\[imu\]\] #1: key 'sensor' is required"),
+    (_doc(IMU0, {"signals": {"rate_frame_id": 0x130}}),
+     r"\[\[imu\]\] #1: key 'sensor' is required"),
     (_doc(IMU0, {**IMU1, "colour": "red"}), r"\[\[imu\]\] #1: unknown key\(s\) \['colour'\]"),
     (_doc(IMU0, {"sensor": "imu0", "signals": IMU1["signals"]}),
      r"\[\[imu\]\] #1: sensor = 'imu0' is already used"),
@@ -101,5 +102,5 @@ def test_errors_name_the_table_field_and_value(doc: dict[str, object], message: 
 
 
 def test_parse_config_points_to_the_vehicle_reader() -> None:
-    with pytest.raises(ConfigError, match="several IMUs: read it with .*load_vehicle_config"):
+    with pytest.raises(ConfigError, match=r"several IMUs: read it with .*load_vehicle_config"):
         parse_config(_doc(IMU0, IMU1))
