@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
@@ -54,10 +55,12 @@ def test_imu_tables_share_the_rest(tmp_path: Path) -> None:
     assert v.imus[1].can.signals.rate_message == "GyroRate"  # merged over the shipped map
     assert v.imus[2].calibration == tmp_path / "cal2.json" and v.imus[2].device_id == "42"
     assert v.imus[0].calibration is None and v.imus[0].zenoh.listen == ("tcp/127.0.0.1:7447",)
-    assert v.imus[2].zenoh.listen == ("tcp/127.0.0.1:7450",)
+    assert v.imus[2].zenoh.listen == ("tcp/127.0.0.1:7447",)  # one process: the shared one
     assert v.consistency == ConsistencyConfig(window_s=1.0)
     alone = v.only("imu2")
-    assert alone.imus == (v.imus[2],) and not alone.multi and alone.consistency is None
+    assert not alone.multi and alone.consistency is None
+    assert alone.imus == (dataclasses.replace(v.imus[2], zenoh=dataclasses.replace(
+        v.imus[2].zenoh, listen=("tcp/127.0.0.1:7450",))),)
     with pytest.raises(ConfigError, match=r"--imu 'imu9'.*\['imu0', 'imu1', 'imu2'\]"):
         v.only("imu9")
 

@@ -1,7 +1,7 @@
 """The consistency message (kind 5): do two IMUs' corrected rates agree?
 
 Published by the daemon with several IMUs on ``gyrotherm/<vehicle>/consistency/<a>/<b>``
-once per window (docs/wire-format.md, "Consistency of several IMUs";
+once per window (docs/wire-format.md, "Several IMUs: frame ids and consistency";
 :mod:`gyrotherm.daemon._consistency` computes it). One msgpack array::
 
     0 kind (5), 1 version (1), 2 seq, 3 receive_time_s (window end, wall clock),

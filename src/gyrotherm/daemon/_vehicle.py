@@ -21,7 +21,8 @@ are shared, and each ``[[imu]]`` table names one IMU::
     signals = { rate_frame_id = 0x120, temperature_frame_id = 0x121 }
                          # optional: keys over [can.signals] (or the shipped map)
     listen = ["tcp/127.0.0.1:7448"]                   # optional: [zenoh] listen when this
-                                                      # IMU runs alone (run --imu)
+                                                      # IMU runs alone (run --imu; ignored
+                                                      # when one process runs them all)
     [[imu]]
     sensor = "imu1"
     signals = { rate_frame_id = 0x122, temperature_frame_id = 0x123 }
@@ -80,6 +81,8 @@ class VehicleConfig:
     consistency: ConsistencyConfig | None = None
     multi: bool = False
     source: str = "<memory>"
+    alone: tuple[DaemonConfig, ...] = ()
+    """Each IMU as ``run --imu`` runs it: with its table's ``listen`` (else = ``imus``)."""
 
     @property
     def sensors(self) -> tuple[str, ...]:
@@ -87,7 +90,7 @@ class VehicleConfig:
 
     def only(self, sensor: str) -> VehicleConfig:
         """The one IMU named ``sensor`` (``run --imu``), with its own ``listen``."""
-        for cfg in self.imus:
+        for cfg in self.alone or self.imus:
             if cfg.sensor == sensor:
                 return VehicleConfig((cfg,), None, False, self.source)
         raise ConfigError(f"{self.source}: --imu {sensor!r}: no [[imu]] table has that sensor; "
@@ -120,7 +123,7 @@ def _consistency(table: Any, where: str) -> ConsistencyConfig | None:
     return ConsistencyConfig(**values) if enabled else None
 
 
-def _imu_doc(base: dict[str, Any], imu: dict[str, Any]) -> dict[str, Any]:
+def _imu_doc(base: dict[str, Any], imu: dict[str, Any], *, alone: bool) -> dict[str, Any]:
     """The single-IMU document of one ``[[imu]]`` table over the shared keys."""
     doc = dict(base)
     for key in PER_IMU_TOP_KEYS:
@@ -135,7 +138,7 @@ def _imu_doc(base: dict[str, Any], imu: dict[str, Any]) -> dict[str, Any]:
         shared = can.get("signals") or dataclasses.asdict(SignalMap.default())
         can["signals"] = {**shared, **imu["signals"]}
     doc["can"] = can
-    if "listen" in imu:
+    if alone and "listen" in imu:
         zen = base.get("zenoh", {})
         doc["zenoh"] = {**(zen if isinstance(zen, dict) else {}), "listen": imu["listen"]}
     return doc
@@ -158,6 +161,7 @@ def parse_vehicle_config(data: dict[str, Any], *, source: str = "<memory>",
                               f"tables, '{key}' belongs in each [[imu]] table")
     base = {k: v for k, v in data.items() if k not in ("imu", "consistency")}
     imus: list[DaemonConfig] = []
+    alone: list[DaemonConfig] = []
     owners: dict[int, str] = {}
     for i, table in enumerate(tables):
         where = f"{source}: [[imu]] #{i}"
@@ -170,7 +174,10 @@ def parse_vehicle_config(data: dict[str, Any], *, source: str = "<memory>",
         if sensor in RESERVED_SENSORS:
             raise ConfigError(f"{where}: sensor = {sensor!r} is reserved (consistency keys)")
         try:
-            cfg = parse_config(_imu_doc(base, table), source=where, base_dir=base_dir)
+            cfg = parse_config(_imu_doc(base, table, alone=False), source=where,
+                               base_dir=base_dir)
+            alone.append(parse_config(_imu_doc(base, table, alone=True), source=where,
+                                      base_dir=base_dir))
         except ConfigError as exc:
             msg = str(exc)
             raise ConfigError(msg if msg.startswith(where) else f"{where}: {msg}") from exc
@@ -192,7 +199,7 @@ def parse_vehicle_config(data: dict[str, Any], *, source: str = "<memory>",
         imus.append(cfg)
     cons = data.get("consistency", {})
     consistency = _consistency(cons, f"{source}: [consistency]") if len(imus) > 1 else None
-    return VehicleConfig(tuple(imus), consistency, True, source)
+    return VehicleConfig(tuple(imus), consistency, True, source, tuple(alone))
 
 
 def load_vehicle_config(path: str | Path) -> VehicleConfig:
