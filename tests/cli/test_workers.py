@@ -6,6 +6,7 @@ failed log is one error line, the others go on, exit 2; Dask is imported only wi
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -17,6 +18,7 @@ import pytest
 from biglogkit import write_dataflash, write_ulog
 from fleetkit import write_fleet
 from gyrotherm.cli import main
+from gyrotherm.cli._pool import Workers, map_logs
 from gyrotherm.cli._prep import Prep, prepare_log
 from gyrotherm.estimators import EstimatorConfig
 from gyrotherm.readers import InputSpec
@@ -42,6 +44,17 @@ def dask_address() -> Iterator[str]:
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster:
         yield str(cluster.scheduler_address)
+
+
+def _dies_on(path: str) -> str:
+    """A per-log function whose worker dies on a log named ``die*``."""
+    if Path(path).name.startswith("die"):
+        os._exit(3)
+    return path.upper()
+
+
+def _lost(path: str, why: str) -> str:
+    return f"LOST {path}: {why}"
 
 
 def _outputs(directory: Path) -> dict[str, bytes]:
@@ -139,3 +152,22 @@ def test_dask_is_imported_only_with_the_option_and_its_absence_names_the_extra(
                           timeout=120)
     assert done.returncode == 0, done.stderr
     assert "pip install 'gyrotherm[fleet]'" in done.stderr
+
+
+@pytest.mark.parametrize("where", ["jobs2", "dask"])
+def test_a_dying_worker_loses_only_its_log(where: str, request: pytest.FixtureRequest) -> None:
+    """Out of memory or killed: that log is lost (named), the others come back in order."""
+    fn = _dies_on
+    if where == "dask":
+        def fn(path: str) -> str:  # local: pickled by value (workers cannot import tests)
+            if Path(path).name.startswith("die"):
+                os._exit(3)
+            return path.upper()
+
+        workers = Workers(scheduler=request.getfixturevalue("dask_address"))
+    else:
+        workers = Workers(jobs=2)
+    paths = ["/a/x1", "/a/die", "/a/x2", "/a/x3", "/a/x4"]
+    out = map_logs(fn, paths, workers, lost=_lost)
+    assert [o for o in out if not o.startswith("LOST")] == ["/A/X1", "/A/X2", "/A/X3", "/A/X4"]
+    assert out[1].startswith("LOST /a/die: ")

@@ -11,23 +11,28 @@
   with this option.
 
 Results come back in the order of the inputs, whatever order the workers finish in.
-The per-log function catches the log's own errors and returns them as its result; a
-worker that dies (killed, out of memory) loses its log, which ``lost`` turns into a
-failed result naming it; the other logs go on.
+The per-log function catches the log's own errors and returns them as its result. A
+worker that dies (killed, out of memory) loses only the log that killed it, which
+``lost`` turns into a failed result naming it; the other logs go on (a local pool runs
+the logs the dead worker broke again one at a time; Dask retries a task on another
+worker and gives up on it after the cluster's ``allowed-failures``).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TypeVar
+from typing import Any, TypeVar
 
 from gyrotherm._errors import ConfigError
 
 T = TypeVar("T")
 
+WORKER_WAIT_S = 60.0
+"""How long ``--dask-scheduler`` waits for the cluster's first worker."""
 EXTRA = "fleet"
 """The optional dependency group holding Dask (pyproject.toml)."""
 
@@ -97,20 +102,35 @@ def map_logs(fn: Callable[[str], T], paths: Sequence[str], workers: Workers, *,
 def _process_map(fn: Callable[[str], T], paths: Sequence[str], jobs: int,
                  lost: Callable[[str, str], T],
                  on_done: Callable[[int, int], None] | None) -> list[T]:
+    """A process pool; when a worker dies the pool is broken and every log it had not
+    finished fails with it, so those logs are run again one at a time, each in a pool of
+    its own: only the log that kills its worker again is lost."""
     from concurrent.futures import Future, ProcessPoolExecutor, as_completed
     from concurrent.futures.process import BrokenProcessPool
 
     results: dict[int, T] = {}
+    again: list[int] = []
+
+    def done_one() -> None:
+        if on_done:
+            on_done(len(results), len(paths))
+
     with ProcessPoolExecutor(max_workers=jobs) as pool:
         futures: dict[Future[T], int] = {pool.submit(fn, p): i for i, p in enumerate(paths)}
-        for done, fut in enumerate(as_completed(futures), 1):
-            i = futures[fut]
+        for fut in as_completed(futures):
             try:
-                results[i] = fut.result()
+                results[futures[fut]] = fut.result()
+                done_one()
+            except BrokenProcessPool:
+                again.append(futures[fut])
+    for i in sorted(again):
+        with ProcessPoolExecutor(max_workers=1) as alone:
+            try:
+                results[i] = alone.submit(fn, paths[i]).result()
             except BrokenProcessPool as exc:
-                results[i] = lost(paths[i], f"a worker process died ({exc}); out of memory?")
-            if on_done:
-                on_done(done, len(paths))
+                results[i] = lost(paths[i], f"its worker process died ({exc}; out of "
+                                  "memory? killed?)")
+        done_one()
     return [results[i] for i in range(len(paths))]
 
 
@@ -131,6 +151,7 @@ def _dask_map(fn: Callable[[str], T], paths: Sequence[str], address: str,
                           f"{exc}") from None
     results: dict[int, T] = {}
     try:
+        _check_workers(client, address)
         futures = client.map(fn, list(paths), pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         for done, fut in enumerate(as_completed(futures, loop=client.loop), 1):
@@ -147,6 +168,23 @@ def _dask_map(fn: Callable[[str], T], paths: Sequence[str], address: str,
     finally:
         client.close()
     return [results[i] for i in range(len(paths))]
+
+
+def _check_workers(client: Any, address: str) -> None:
+    """ConfigError when the cluster has no worker within :data:`WORKER_WAIT_S`; a note
+    when its workers run several tasks at once (each holds a log: memory per worker)."""
+    try:
+        client.wait_for_workers(1, timeout=WORKER_WAIT_S)
+    except TimeoutError:
+        raise ConfigError(f"--dask-scheduler {address}: the cluster has no worker (waited "
+                          f"{WORKER_WAIT_S:g} s): start some, `dask worker {address} "
+                          "--nthreads 1`") from None
+    workers = client.scheduler_info().get("workers", {})
+    threads = max((int(w.get("nthreads", 1)) for w in workers.values()), default=1)
+    if threads > 1:
+        print(f"note: --dask-scheduler {address}: workers run {threads} tasks at once, so "
+              f"each holds up to {threads} logs in memory (start them with --nthreads 1 "
+              "for one)", file=sys.stderr)
 
 
 __all__ = ["EXTRA", "Workers", "add_worker_options", "default_jobs", "map_logs",
