@@ -40,6 +40,8 @@ ORDER = ["zenoh_baseline", "stream_throughput", "stream_latency"]
 ARGS: dict[str, list[str]] = {
     "zenoh_baseline": ["--mode", "micro", "--iterations", "50000"],
     "footprint": ["--import-trials", "7", "--ready-trials", "5", "--daemon-trials", "2"],
+    # 6 minutes of log (an hour's library path alone takes 1.5-4 min per trial)
+    "readers_fast": ["--rows", "3.6e5", "--trials", "5", "--library-trials", "2"],
 }
 QUICK_ARGS: dict[str, list[str]] = {
     "stream_throughput": ["--trials", "2", "--trial-s", "2", "--unpaced-frames", "100000"],
