@@ -113,9 +113,11 @@ def test_a_lag_below_the_limit_is_dropped_with_the_reason(
     # a readout whose LSB takes longer to cross than the fitted lag (hand-set limit)
     slow = LagLimit(hold_s=1.3, lsb_crossing_s=2.0 * final.effects["thermal_lag"],
                     smoother_s=15.5)
-    kept, note = drop_unresolved_lag(selector, final, slow, [])
+    kept, verdict = drop_unresolved_lag(selector, final, slow, [])
     assert "thermal_lag" not in kept.effects
-    assert note is not None and "below what the temperature readout can resolve" in note
+    assert verdict is not None and verdict.effect == "thermal_lag"
+    assert "below what the temperature readout can resolve" in verdict.reason
+    assert verdict.to_dict()["verdict"] == "not resolvable at this readout"
 
 
 def test_the_lag_a_coarse_readout_alone_produces_is_not_named() -> None:

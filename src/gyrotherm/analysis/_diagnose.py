@@ -54,7 +54,7 @@ from gyrotherm.analysis._prep import (
     prepare,
     with_tau,
 )
-from gyrotherm.analysis._resolve import drop_unresolved_lag, lag_limit
+from gyrotherm.analysis._resolve import NotResolvable, drop_unresolved_lag, lag_limit
 from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._select import Selection, select
 from gyrotherm.analysis._unexplained import Unexplained, search_unexplained
@@ -100,6 +100,9 @@ class Diagnosis:
     unexplained: tuple[Unexplained, ...] = field(default_factory=tuple)
     """Significant residual structure no catalogued effect explains (:mod:`._unexplained`);
     listed after the findings in ``to_dict``, not part of ``extended``."""
+    not_resolvable: tuple[NotResolvable, ...] = field(default_factory=tuple)
+    """Effects the selection chose that the data cannot support at this readout
+    (:mod:`._resolve`): left out of ``extended``, named with the reason instead."""
 
     @property
     def gain(self) -> float:
@@ -120,6 +123,7 @@ class Diagnosis:
                 "heldout_rms_dps": self.extended_heldout_rms_dps,
                 "gain": self.gain,
             },
+            "not_resolvable": [v.to_dict() for v in self.not_resolvable],
             "simulation": sim.to_dict() if sim else {"mismatch": [], "calibration": None},
             "notes": list(self.notes),
         }
@@ -205,10 +209,13 @@ def diagnose(
     say("selecting effects (leave-one-run-out)")
     selection = select(selector, margin=margin, progress=say)
     base_ev, final_ev = selection.baseline, selection.final
-    final_ev, lag_note = drop_unresolved_lag(
+    final_ev, lag_verdict = drop_unresolved_lag(
         selector, final_ev, lag_limit(readouts, prepared, features=features), readouts,
         margin=margin, seed=seed)
-    if lag_note:
+    verdicts = (lag_verdict,) if lag_verdict else ()
+    if lag_verdict:
+        lag_note = ("thermal_lag not reported as a physical finding (not resolvable at this "
+                    f"readout): {lag_verdict.reason}")
         notes.append(lag_note)
         say(lag_note)
     say("testing residual structure no catalogued effect explains")
@@ -248,7 +255,7 @@ def diagnose(
         residuals=tuple(resid), extended_residuals=tuple(ext_resid),
         heldout_baseline=held_b, heldout_extended=held_e,
         tau_s=tau_s, tau_from_chamber=tau_fit is not None, notes=tuple(notes),
-        unexplained=search.unexplained,
+        unexplained=search.unexplained, not_resolvable=verdicts,
     )
     if not simulate:
         return diagnosis

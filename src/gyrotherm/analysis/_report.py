@@ -140,6 +140,10 @@ def write_report(d: Diagnosis, directory: str | Path) -> Path:
                   "structure; refitted on the vehicle's estimator features)",
                   f"- held-out RMS with the correction: {_fmt(u.heldout_rms_dps)} °/s "
                   f"(gain {u.gain:.3f})", f"- evidence: {u.evidence}", ""]
+    for v in d.not_resolvable:
+        lines += ["", f"## {v.effect}: not resolvable at this readout", "",
+                  f"- fitted: {', '.join(f'{k} = {_fmt(x)}' for k, x in v.params.items())}",
+                  f"- reason: {v.reason}"]
     lines += ["", "## Effects tried on the baseline", "",
               "| effect | held-out gain | left-out runs improved | ΔBIC_eff |", "|---|---|---|---|"]
     for name, (ratio, improved, dbic) in d.selection.tried.items():

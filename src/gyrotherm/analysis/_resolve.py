@@ -19,31 +19,40 @@ fit found timing the readout cannot show).
 A lag *above* τ_min can still be the readout's doing: with a coarse LSB the
 smoothed reading keeps a ripple of up to ~q/2 between code changes, which a
 lagged temperature smooths away, so a lag buys held-out gain where none
-exists. So the lag's held-out gain is compared with the gain a lag buys on
-replays of the runs in which no lag exists (:func:`replay_lag_gain`: the model
-without the lag on a step-free temperature history, re-read through the same
-readout and smoother); the lag must beat the largest null gain of
-:data:`NULL_REPLAYS` replays by the selection's margin.
+exists. So the lag is compared with the lag :data:`NULL_REPLAYS` replays of the
+runs without any lag produce through the same readout
+(:func:`~._null_replay.replay_lag`). It is not resolvable when
 
-An unresolved lag is left out of the model and named in the notes with the
-reason.
+* its held-out gain is not ``margin`` above the largest null gain, or
+* the readout alone produces a lag that nearly passes the selection (null gain
+  ≥ 1 + margin/2) at the same τ (within a factor :data:`SAME_TAU_FACTOR`): the
+  data cannot tell that lag from the staircase's, whatever the gains (the
+  replay's temperature is smoother than the device's, so its null gain is a
+  lower bound; the τ the ripple selects is robust to that).
+
+An unresolved lag is left out of the model and reported as a
+:class:`NotResolvable` verdict ("not resolvable at this readout") with the
+reason, and in the notes.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
-from scipy.signal import savgol_filter
 
-from gyrotherm.analysis._effects import design
+from gyrotherm.analysis._null_replay import replay_lag
 from gyrotherm.analysis._prep import BLOCK_S, Prepared, Readout
 from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._stats import RATE_THRESHOLD_C_PER_S
 
-FloatArray = NDArray[np.float64]
+VERDICT = "not resolvable at this readout"
+NULL_REPLAYS = 2
+"""Readout replays without a lag whose largest lag gain a real lag must beat."""
+SAME_TAU_FACTOR = 1.5
+"""A lag within this factor of the τ the readout alone produces is not told apart from it."""
 SMOOTH_T_WINDOW_S = 31.0
 """Window (s) of the Savitzky–Golay fit that gives T in :func:`~._prep.prepare`."""
 
@@ -81,122 +90,59 @@ def lag_limit(
     return LagLimit(hold_s=hold, lsb_crossing_s=crossing, smoother_s=smoother)
 
 
+@dataclass(frozen=True)
+class NotResolvable:
+    """An effect the selection chose that the data cannot support at this readout."""
+
+    effect: str
+    params: Mapping[str, float]
+    reason: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"effect": self.effect, "verdict": VERDICT, "params": dict(self.params),
+                "reason": self.reason}
+
+
 def drop_unresolved_lag(
     selector: Selector, final: Evaluation, limit: LagLimit, readouts: Sequence[Readout],
     *, margin: float = 0.10, seed: int = 0,
-) -> tuple[Evaluation, str | None]:
-    """``final`` without its ``thermal_lag`` (the others refitted) and the note saying
-    why, when the lag is not resolvable: τ < τ_min, or its held-out gain is not
-    ``margin`` above the largest of :data:`NULL_REPLAYS` readout replays without a
-    lag (:func:`replay_lag_gain`); else ``final`` and None."""
+) -> tuple[Evaluation, NotResolvable | None]:
+    """``final`` without its ``thermal_lag`` (the others refitted) and the verdict
+    saying why, when the lag is not resolvable (module docstring); else ``final``
+    and None."""
     from gyrotherm.analysis._select import _refine_all
 
     tau = final.effects.get("thermal_lag")
     if tau is None:
         return final, None
     rest = {k: v for k, v in final.effects.items() if k != "thermal_lag"}
+    params = {"tau_s": float(tau)}
     if tau < limit.tau_min_s:
         why = (f"τ = {tau:.1f} s is below what the temperature readout can resolve "
                f"({limit.reason()}; hold {limit.hold_s:.2f} s, LSB crossing "
                f"{limit.lsb_crossing_s:.1f} s, smoother {limit.smoother_s:.1f} s)")
     else:
-        gains = [replay_lag_gain(selector, final, readouts, limit, seed=seed + k)
-                 for k in range(NULL_REPLAYS)]
-        real, null = gains[0][0], max(g[1] for g in gains)
-        if real >= (1.0 + margin) * null:
+        rep = replay_lag(selector, final, readouts, limit.lsb_crossing_s, seed=seed,
+                         replays=NULL_REPLAYS)
+        params |= {"heldout_gain": rep.real_gain, "null_gain": rep.null_gain,
+                   "null_tau_s": rep.null_tau}
+        same_tau = 1.0 / SAME_TAU_FACTOR <= tau / rep.null_tau <= SAME_TAU_FACTOR
+        readout = (f"hold {limit.hold_s:.2f} s, LSB crossing {limit.lsb_crossing_s:.1f} s on "
+                   f"the ramps; null replays from the {rep.truth}")
+        if rep.real_gain < (1.0 + margin) * rep.null_gain:
+            why = (f"τ = {tau:.1f} s, held-out gain ×{rep.real_gain:.3f}, but replays of the "
+                   f"runs' readout ({readout}) on a model without a lag already give a lag "
+                   f"×{rep.null_gain:.3f}: not ×{1.0 + margin:.2f} above what the readout "
+                   "alone produces")
+        elif same_tau and rep.null_gain >= 1.0 + margin / 2.0:
+            why = (f"τ = {tau:.1f} s, held-out gain ×{rep.real_gain:.3f}, but the readout "
+                   f"alone ({readout}) produces a lag of τ = {rep.null_tau:.0f} s "
+                   f"(gain ×{rep.null_gain:.3f}) in replays without one: the readout's "
+                   f"quantisation ripple, smoothed by a lag of that τ, cannot be told apart "
+                   f"from a lag within ×{SAME_TAU_FACTOR:g} of it")
+        else:
             return final, None
-        why = (f"τ = {tau:.1f} s, held-out gain ×{real:.3f}, but replays of the runs' "
-               f"readout (hold {limit.hold_s:.2f} s, LSB crossing {limit.lsb_crossing_s:.1f} s)"
-               f" on a model without a lag already give a lag ×{null:.3f}: not "
-               f"×{1.0 + margin:.2f} above what the readout alone produces")
     without = _refine_all(selector, selector.evaluate(rest))
-    note = (f"thermal_lag not reported as a physical finding: {why}; held-out RMS "
-            f"without it {without.heldout_rms_dps:.5f} vs {final.heldout_rms_dps:.5f} °/s")
-    return without, note
-
-
-NULL_REPLAYS = 2
-"""Readout replays without a lag whose largest lag gain a real lag must beat."""
-REPLAY_SUBSTEP_S = 0.1
-"""Sub-sample spacing (s) of the replayed readout within each 1-s block."""
-TRUTH_WINDOW_S = 121
-"""Window (s, odd) of the zero-phase fit that gives the replay's smooth temperature."""
-
-
-def _pseudo_truth(temperature_c: FloatArray, crossing_s: float) -> FloatArray:
-    """A temperature history without the readout's steps: a zero-phase Savitzky–Golay
-    fit (order 2) over max(121 s, 4 LSB crossings) — no lag added."""
-    n = len(temperature_c)
-    w = int(max(TRUTH_WINDOW_S, 4.0 * crossing_s)) | 1
-    w = min(w, n - 1 if n % 2 == 0 else n)
-    if w < 5:
-        return temperature_c.copy()
-    return np.asarray(savgol_filter(temperature_c, w, 2, mode="interp"), dtype=np.float64)
-
-
-def _reread(
-    time_s: FloatArray, truth_c: FloatArray, readout: Readout, rng: np.random.Generator
-) -> FloatArray:
-    """1-s block means of ``truth_c`` read as the sensor does: refreshed every
-    period, white noise, quantised to the LSB, held in between."""
-    sub = np.arange(0.0, float(time_s[-1]) + 1.0, REPLAY_SUBSTEP_S)
-    period = max(readout.period_s, REPLAY_SUBSTEP_S)
-    k = np.floor(sub / period).astype(np.int64)
-    fresh_t = np.unique(k) * period
-    values = np.interp(fresh_t, time_s, truth_c) + rng.standard_normal(len(fresh_t)) \
-        * readout.noise_c
-    if readout.lsb_c > 0:
-        values = np.round(values / readout.lsb_c) * readout.lsb_c
-    reading = values[np.searchsorted(np.unique(k), k)]
-    block = np.floor(sub).astype(np.int64)
-    means = np.bincount(block, weights=reading) / np.bincount(block)
-    return np.asarray(means[: len(time_s)], dtype=np.float64)
-
-
-def replay_lag_gain(
-    selector: Selector, final: Evaluation, readouts: Sequence[Readout], limit: LagLimit,
-    *, seed: int = 0,
-) -> tuple[float, float]:
-    """(real, null) held-out gains of the model's ``thermal_lag``.
-
-    Real: held-out RMS of the model without the lag / with it. Null: the same on
-    a replay of the runs in which no lag exists — the model without the lag,
-    evaluated on a step-free temperature history (:func:`_pseudo_truth` of the
-    features) plus white noise of the real residuals' spread, with the features
-    recomputed from that history re-read through the runs' readout (period, LSB,
-    noise: :func:`_reread`) and the same smoother. A lag the readout alone
-    produces shows up in the null gain."""
-    from dataclasses import replace
-
-    from gyrotherm.analysis._prep import _smooth
-    from gyrotherm.analysis._select import _refine_all
-
-    rest = {k: v for k, v in final.effects.items() if k != "thermal_lag"}
-    without = _refine_all(selector, selector.evaluate(rest))
-    real = without.heldout_rms_dps / final.heldout_rms_dps
-    readout = replace(readouts[0],
-                      period_s=float(np.median([r.period_s for r in readouts])),
-                      lsb_c=float(np.median([r.lsb_c for r in readouts])),
-                      noise_c=float(np.median([r.noise_c for r in readouts])))
-    rng = np.random.default_rng(seed)
-    noise = float(np.sqrt(final.rss / final.n))
-    tau = float(np.median([np.median(p.delta_t_c[p.rate_c_per_s != 0]
-                                     / p.rate_c_per_s[p.rate_c_per_s != 0])
-                           for p in selector.runs]))
-    replayed = []
-    for p in selector.runs:
-        truth = _pseudo_truth(p.temperature_c, limit.lsb_crossing_s)
-        rate_true = np.gradient(truth, p.time_s)
-        true_run = replace(p, temperature_c=truth, rate_c_per_s=rate_true,
-                           delta_t_c=tau * rate_true)
-        _, x = design(true_run.time_s, truth, true_run.delta_t_c, selector.scaling,
-                      without.effects)
-        y = x @ without.coefficients + rng.standard_normal(len(p)) * noise
-        temp, rate_c = _smooth(_reread(p.time_s, truth, readout, rng))
-        replayed.append(replace(p, temperature_c=temp, rate_c_per_s=rate_c,
-                                delta_t_c=tau * rate_c, rate_dps=y))
-    null_sel = Selector(replayed, selector.scaling)
-    null_without = _refine_all(null_sel, null_sel.evaluate(rest))
-    null_with = _refine_all(null_sel, null_sel.evaluate({**rest, "thermal_lag": 0.0},
-                                                        search="thermal_lag"))
-    return real, null_without.heldout_rms_dps / null_with.heldout_rms_dps
+    reason = (f"{why}; held-out RMS without it {without.heldout_rms_dps:.5f} vs "
+              f"{final.heldout_rms_dps:.5f} °/s")
+    return without, NotResolvable("thermal_lag", params, reason)

@@ -1,0 +1,166 @@
+"""Null replays: what a fitted ``thermal_lag`` looks like when no lag exists.
+
+A quantised, held temperature reading is a staircase; the diagnosis' smoothed
+temperature keeps a ripple of up to ~LSB/2 between code changes, and the bias'
+temperature terms carry that ripple into the residuals. A first-order lag of
+the temperature smooths the ripple away, so a lag buys held-out gain where the
+physics has none. How much, and at which τ, depends on the readout (LSB, hold
+period, white noise), the ramp rates and the device's temperature sensitivity,
+so it is measured on replays of the runs themselves:
+
+1. **A temperature without the readout's steps.** When the runs log the
+   chamber, the case temperature the chamber drives: T = lowpass(chamber + P, τ)
+   with τ and the self-heating P regressed from the runs (:func:`~._prep.fit_tau`;
+   the thermal physics the estimator already assumes), shifted to the reading's
+   mean. Without a chamber, a zero-phase Savitzky–Golay fit of the reading over
+   max(121 s, 4 LSB crossings) (smoother at the corners: the replay then
+   underestimates what the readout produces, and says so in the verdict).
+2. **The model without the lag, fitted on that temperature.** Fitted on the
+   staircase, the temperature coefficients are attenuated (errors in the
+   variable) and a replay built from them understates the ripple the bias
+   terms carry; so the coefficients are refitted to the measured rates on the
+   step-free temperature. The replayed rate is that model plus white noise of
+   its residuals' spread.
+3. **The same readout.** The step-free temperature is re-read as the sensor
+   does (refreshed every hold period, white noise σ as characterised, rounded
+   to the LSB, held; 1-s block means) and smoothed like the real reading.
+
+On each replay the model without the lag and the model with a lag (τ searched
+as in the selection) are scored leave-one-run-out; the null gain and the null
+lag's τ are what the readout alone produces (:func:`replay_lag`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.signal import savgol_filter
+
+from gyrotherm.analysis._effects import design, lowpass
+from gyrotherm.analysis._prep import Prepared, Readout, _smooth, fit_tau
+from gyrotherm.analysis._score import Evaluation, Selector
+
+FloatArray = NDArray[np.float64]
+
+REPLAY_SUBSTEP_S = 0.1
+"""Sub-sample spacing (s) of the replayed readout within each 1-s block."""
+TRUTH_WINDOW_S = 121
+"""Window (s, odd) of the zero-phase fit that gives the step-free temperature without a chamber."""
+
+
+@dataclass(frozen=True)
+class LagReplay:
+    """Held-out gains of a ``thermal_lag`` on the runs and on null replays."""
+
+    real_gain: float
+    null_gains: tuple[float, ...]
+    null_tau_s: tuple[float, ...]
+    truth: str
+    """How the step-free temperature was made: ``"chamber"`` or ``"smoothed reading"``."""
+
+    @property
+    def null_gain(self) -> float:
+        return max(self.null_gains)
+
+    @property
+    def null_tau(self) -> float:
+        return float(np.median(self.null_tau_s))
+
+
+def _pseudo_truth(temperature_c: FloatArray, crossing_s: float) -> FloatArray:
+    """A zero-phase Savitzky–Golay fit (order 2) over max(121 s, 4 LSB crossings)."""
+    n = len(temperature_c)
+    w = int(max(TRUTH_WINDOW_S, 4.0 * crossing_s)) | 1
+    w = min(w, n - 1 if n % 2 == 0 else n)
+    if w < 5:
+        return temperature_c.copy()
+    return np.asarray(savgol_filter(temperature_c, w, 2, mode="interp"), dtype=np.float64)
+
+
+def step_free(runs: Sequence[Prepared], crossing_s: float) -> tuple[list[FloatArray], str]:
+    """Step 1 of the module docstring, per run, and which construction was used."""
+    chamber = fit_tau(runs)
+    if chamber is None or any(p.chamber_c is None for p in runs):
+        return [_pseudo_truth(p.temperature_c, crossing_s) for p in runs], "smoothed reading"
+    tau, heat = chamber
+    out = []
+    for p in runs:
+        assert p.chamber_c is not None
+        t = lowpass(p.chamber_c + heat, tau, step_s=float(np.median(np.diff(p.time_s))))
+        out.append(np.asarray(t + np.mean(p.temperature_c - t), dtype=np.float64))
+    return out, "chamber"
+
+
+def reread(
+    time_s: FloatArray, truth_c: FloatArray, readout: Readout, rng: np.random.Generator
+) -> FloatArray:
+    """1-s block means of ``truth_c`` read as the sensor does: refreshed every
+    period, white noise, quantised to the LSB, held in between."""
+    sub = np.arange(0.0, float(time_s[-1]) + 1.0, REPLAY_SUBSTEP_S)
+    period = max(readout.period_s, REPLAY_SUBSTEP_S)
+    k = np.floor(sub / period).astype(np.int64)
+    fresh_t = np.unique(k) * period
+    values = np.interp(fresh_t, time_s, truth_c) + rng.standard_normal(len(fresh_t)) \
+        * readout.noise_c
+    if readout.lsb_c > 0:
+        values = np.round(values / readout.lsb_c) * readout.lsb_c
+    reading = values[np.searchsorted(np.unique(k), k)]
+    block = np.floor(sub).astype(np.int64)
+    means = np.bincount(block, weights=reading) / np.bincount(block)
+    return np.asarray(means[: len(time_s)], dtype=np.float64)
+
+
+def replay_readout(readouts: Sequence[Readout]) -> Readout:
+    """The runs' readout for the replay: median hold and LSB; the white noise σ as
+    characterised (before rounding), not the scatter between changes (which, at a
+    coarse LSB, is one LSB step and would dither away the staircase)."""
+    white = [r.white_noise_c if r.refresh_period_s > 0 else r.noise_c for r in readouts]
+    return replace(readouts[0],
+                   period_s=float(np.median([r.period_s for r in readouts])),
+                   lsb_c=float(np.median([r.lsb_c for r in readouts])),
+                   noise_c=float(np.median(white)))
+
+
+def replay_lag(
+    selector: Selector, final: Evaluation, readouts: Sequence[Readout], crossing_s: float,
+    *, seed: int = 0, replays: int = 2,
+) -> LagReplay:
+    """Real and null held-out gains of ``final``'s ``thermal_lag`` (module docstring)."""
+    from gyrotherm.analysis._select import _refine_all
+
+    rest = {k: v for k, v in final.effects.items() if k != "thermal_lag"}
+    without = _refine_all(selector, selector.evaluate(rest))
+    real = without.heldout_rms_dps / final.heldout_rms_dps
+    tau = float(np.median([np.median(p.delta_t_c[p.rate_c_per_s != 0]
+                                     / p.rate_c_per_s[p.rate_c_per_s != 0])
+                           for p in selector.runs]))
+    truths, how = step_free(selector.runs, crossing_s)
+    true_runs = []
+    for p, t in zip(selector.runs, truths, strict=True):
+        rate = np.gradient(t, p.time_s)
+        true_runs.append(replace(p, temperature_c=t, rate_c_per_s=rate, delta_t_c=tau * rate))
+    true_sel = Selector(true_runs, selector.scaling)
+    model = _refine_all(true_sel, true_sel.evaluate(rest))
+    noise = float(np.sqrt(model.rss / model.n))
+    readout = replay_readout(readouts)
+    rng = np.random.default_rng(seed)
+    gains, taus = [], []
+    for _ in range(replays):
+        replayed = []
+        for p, tp in zip(selector.runs, true_runs, strict=True):
+            _, x = design(tp.time_s, tp.temperature_c, tp.delta_t_c, selector.scaling,
+                          model.effects)
+            y = x @ model.coefficients + rng.standard_normal(len(p)) * noise
+            temp, rate_c = _smooth(reread(p.time_s, tp.temperature_c, readout, rng))
+            replayed.append(replace(p, temperature_c=temp, rate_c_per_s=rate_c,
+                                    delta_t_c=tau * rate_c, rate_dps=y))
+        null_sel = Selector(replayed, selector.scaling)
+        null_without = _refine_all(null_sel, null_sel.evaluate(rest))
+        null_with = _refine_all(null_sel, null_sel.evaluate({**rest, "thermal_lag": 0.0},
+                                                            search="thermal_lag"))
+        gains.append(null_without.heldout_rms_dps / null_with.heldout_rms_dps)
+        taus.append(float(null_with.effects["thermal_lag"]))
+    return LagReplay(real, tuple(gains), tuple(taus), how)
