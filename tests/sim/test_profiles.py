@@ -52,12 +52,12 @@ def test_default_profile_reproduces_the_old_simulator_exactly() -> None:
 def test_profiles_are_distinct_and_unknown_names_are_config_errors() -> None:
     assert set(PROFILE_NAMES) == {"default", "tang2013", "bmi270"}
     tang = get_profile("tang2013")
-    dt = tang.gyro.bias.coefficients["x"]["dT"]
-    assert 0 < dt < GyroParams().bias.coefficients["x"]["dT"] / 5  # far smaller ΔT response
-    assert tang.gyro.bias.coefficients["x"]["T"] == GyroParams().bias.coefficients["x"]["T"]
-    assert tang.chamber.bow_rate_exponent > 0
+    # only the white noise beat its nulls (docs/findings.md §7); the rest is the default
+    assert tang.gyro.bias == GyroParams().bias and tang.chamber == ChamberModel()
+    assert tang.gyro.arw_deg_per_rth != GyroParams().arw_deg_per_rth
     bmi = get_profile("bmi270")
-    assert set(bmi.sessions) == {"cold", "hot"} and bmi.gyro.lines
+    assert set(bmi.sessions) == {"cold", "hot"} and not bmi.gyro.lines
+    assert all(s.lines for s in bmi.sessions.values())  # per-session descriptions
     assert bmi.gyro.rate_lsb_dps == pytest.approx(1 / 16.4)
     with pytest.raises(ConfigError, match="unknown; choose from default, tang2013, bmi270"):
         get_profile("nope")

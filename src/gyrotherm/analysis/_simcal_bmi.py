@@ -1,10 +1,10 @@
-"""The simulator calibrated to the BMI270 plateaus (docs/findings.md §1, §7).
+"""The simulator calibrated to the BMI270 plateaus, held out across sessions
+(docs/findings.md §1, §7).
 
 Data: ``bmi270_static_clean.csv`` of the BMI270 data set (© 2026 Ganesh Yerramsetti,
-MIT; see its SOURCE.md): two isothermal plateaus (cold ≈ 13 °C, hot ≈ 48 °C), 50 Hz
-nominal, output quantum 1/16.4 °/s. The two sessions share no spectral line and
-differ in noise level per axis (§1), so a per-run (session) setting is fitted on the
-FIRST half of each plateau and scored on the SECOND half (held out):
+MIT; see its SOURCE.md): two isothermal plateaus (cold ≈ 13 °C, 65 s; hot ≈ 48 °C,
+131 s), separate sessions, 50 Hz nominal, output quantum 1/16.4 °/s. Fitted on one
+whole session and scored on the other (cold → hot, hot → cold), per axis:
 
 * lines: in each band (0.1–2, 2–12, 12–25 Hz) the strongest Welch PSD bin
   (nperseg 512), kept if it is ≥ 4× the band's median; its amplitude A (°/s) by
@@ -12,16 +12,19 @@ FIRST half of each plateau and scored on the SECOND half (held out):
   (±0.1 Hz) to the largest A;
 * white level: σ_w² = var − Σ A²/2 − q²/12 (q the output quantum), N = σ_w·60/√f_s.
 
-Scored per plateau and axis on the held-out half (simulated: mean over seeds of
-isothermal plateaus of the same length, quantised to q): e = |ln(sim/measured)| of
-the std and of the Allan deviation at τ = 0.1, 1 s; and the fraction of the held-out
-half's lines (same rule) that the simulation does not show within ±0.5 Hz.
+Scored on the other session's axis (simulated: isothermal plateaus of the same
+length, quantised to q, one per seed): per seed e = |ln(sim/measured)| of the std and
+of the Allan deviation at τ = 0.1, 1 s, and the share of the scored axis' lines
+(same rule) the simulation does not show within ±0.5 Hz; the axis' error per seed
+is the mean of these. Null comparisons (:mod:`._simcal_nulls`): the white level
+against the default N and zero, the lines against none (white refitted to the whole
+variance).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -29,7 +32,7 @@ import numpy as np
 from scipy.signal import welch
 
 from gyrotherm._errors import ConfigError
-from gyrotherm.analysis._simcal import Score
+from gyrotherm.analysis._simcal_nulls import NullTest, run_null_tests
 from gyrotherm.analysis._stats import allan_deviation
 from gyrotherm.sim import ChamberModel, ChamberProfile, GyroParams, simulate
 from gyrotherm.sim._lines import SpectralLine
@@ -64,7 +67,8 @@ def lines_in(g: FloatArray) -> list[tuple[float, float]]:
     for lo, hi in BANDS_HZ:
         sel = (f >= lo) & (f < hi)
         i = int(np.argmax(p[sel]))
-        prom = float(p[sel][i] / np.median(p[sel]))
+        median = float(np.median(p[sel]))
+        prom = float(p[sel][i]) / median if median > 0 else 0.0  # 0: a constant signal
         if prom >= PROMINENCE:
             out.append((float(f[sel][i]), prom))
     return out
@@ -84,22 +88,29 @@ def sine_amplitude(g: FloatArray, f0_hz: float) -> tuple[float, float]:
     return best
 
 
-def fit_session(data: Mapping[str, FloatArray]) -> GyroParams:
-    """Per-axis white level and lines of one plateau half (module docstring)."""
+def fit_session(data: Mapping[str, FloatArray], *, white: Mapping[str, float] | None = None,
+                lines_off: Collection[str] = ()) -> GyroParams:
+    """Per-axis white level and lines of one plateau (module docstring); ``white``
+    holds axes' levels (°/√h) fixed, ``lines_off`` fits no lines on those axes."""
     lines: list[SpectralLine] = []
     arw: dict[str, float] = {}
     for a in AXES:
         g = data[a]
         power = 0.0
-        for f0, _ in lines_in(g):
+        for f0, _ in ([] if a in lines_off else lines_in(g)):
             f, amp = sine_amplitude(g, f0)
             lines.append(SpectralLine(frequency_hz=f, amplitude_dps={a: amp}))
             power += amp**2 / 2
-        white = math.sqrt(max(float(np.var(g)) - power - LSB_DPS**2 / 12, 0.0))
-        arw[a] = white * 60 / math.sqrt(FS_HZ)
+        level = math.sqrt(max(float(np.var(g)) - power - LSB_DPS**2 / 12, 0.0))
+        arw[a] = (white or {}).get(a, level * 60 / math.sqrt(FS_HZ))
     base = GyroParams().quiet()
     return replace(base, rate_lsb_dps=LSB_DPS, arw_by_axis_deg_per_rth=arw,
                    lines=tuple(lines))
+
+
+def line_rms(gyro: GyroParams, axis: str) -> float:
+    """√(Σ A²/2) of ``gyro``'s lines on ``axis`` (°/s): their share of the std."""
+    return math.sqrt(sum(ln.amplitude_dps.get(axis, 0.0) ** 2 / 2 for ln in gyro.lines))
 
 
 def simulate_plateau(gyro: GyroParams, *, axis: str, n: int, temp_c: float,
@@ -112,43 +123,56 @@ def simulate_plateau(gyro: GyroParams, *, axis: str, n: int, temp_c: float,
     return np.asarray(run.rates_dps[axis][:n] - run.true_bias_dps[axis][:n], dtype=float)
 
 
-def _half(d: Mapping[str, FloatArray], second: bool) -> dict[str, FloatArray]:
-    n = len(d["x"]) // 2
-    return {k: (v[n:] if second else v[:n]) for k, v in d.items()}
-
-
-def score_bmi(sessions: Mapping[str, GyroParams], data: Mapping[str, Mapping[str, FloatArray]],
-              *, seeds: Sequence[int]) -> tuple[Score, ...]:
-    """Held-out (second-half) errors of the simulator, per plateau and axis, with
-    ``sessions[plateau]`` the gyro of that plateau."""
+def axis_errors(gyro: GyroParams, data: Mapping[str, FloatArray], axis: str, *,
+                seeds: Sequence[int]) -> list[float]:
+    """Per seed, the mean error of ``gyro``'s ``axis`` on the plateau ``data``."""
+    g = data[axis]
+    temp = float(np.mean(data["temp_c"]))
+    want = [f for f, _ in lines_in(g)]
     out = []
-    for s, d in data.items():
-        held = _half(d, second=True)
-        temp = float(np.mean(held["temp_c"]))
+    for k in seeds:
+        x = simulate_plateau(gyro, axis=axis, n=len(g), temp_c=temp, seed=k)
+        e = [abs(math.log(np.std(x) / np.std(g)))]
+        for tau in ALLAN_TAUS_S:
+            m = round(tau * FS_HZ)
+            e.append(abs(math.log(allan_deviation([x], m) / allan_deviation([g], m))))
+        if want:
+            have = [h for h, _ in lines_in(x)]
+            e.append(1.0 - float(np.mean([any(abs(f - h) <= TOLERANCE_HZ for h in have)
+                                          for f in want])))
+        out.append(float(np.mean(e)))
+    return out
+
+
+DIRECTIONS: tuple[tuple[str, str], ...] = (("cold", "hot"), ("hot", "cold"))
+
+
+def cross_session_tests(data: Mapping[str, Mapping[str, FloatArray]], *,
+                        seeds: Sequence[int]) -> dict[tuple[str, str], list[NullTest]]:
+    """Per direction (fit session, scored session): the null test of each axis' white
+    level ("white x", …; °/√h) and lines ("lines x", …; value: their RMS, °/s)."""
+    out: dict[tuple[str, str], list[NullTest]] = {}
+    default_white = GyroParams().arw_deg_per_rth
+    for fit_s, score_s in DIRECTIONS:
+        fitted = fit_session(data[fit_s])
+        tests: list[NullTest] = []
         for a in AXES:
-            g = held[a]
-            sims = [simulate_plateau(sessions[s], axis=a, n=len(g), temp_c=temp, seed=k)
-                    for k in seeds]
-            std_s = float(np.mean([np.std(x) for x in sims]))
-            std_m = float(np.std(g))
-            out.append(Score(f"{s} {a}: std (°/s)", "held out", std_m, std_s,
-                             abs(math.log(std_s / std_m))))
-            for tau in ALLAN_TAUS_S:
-                m = round(tau * FS_HZ)
-                ad_m = allan_deviation([g], m)
-                ad_s = float(np.mean([allan_deviation([x], m) for x in sims]))
-                out.append(Score(f"{s} {a}: Allan dev. at {tau:g} s (°/s)", "held out", ad_m,
-                                 ad_s, abs(math.log(ad_s / ad_m))))
-            want = [f for f, _ in lines_in(g)]
-            if want:
-                found = [np.mean([any(abs(f - h) <= TOLERANCE_HZ for h, _ in lines_in(x))
-                                  for x in sims]) for f in want]
-                share = float(np.mean(found))
-                out.append(Score(f"{s} {a}: share of {len(want)} line(s) reproduced",
-                                 "held out", 1.0, share, 1.0 - share))
-    return tuple(out)
+            def evaluate(name: str, value: float, a: str = a, fit_s: str = fit_s,
+                         score_s: str = score_s) -> list[float]:
+                gyro = (fit_session(data[fit_s], white={a: value}) if name.startswith("white")
+                        else fit_session(data[fit_s], lines_off={a}))
+                return axis_errors(gyro, data[score_s], a, seeds=seeds)
+
+            values = {f"white {a}": fitted.arw_for(a), f"lines {a}": line_rms(fitted, a)}
+            defaults = {f"white {a}": default_white, f"lines {a}": 0.0}
+            errors = axis_errors(fitted, data[score_s], a, seeds=seeds)
+            tests += run_null_tests({k: v for k, v in values.items()
+                                     if not (k.startswith("lines") and v == 0)},
+                                    defaults, (), dict.fromkeys(values, errors), evaluate)
+        out[(fit_s, score_s)] = tests
+    return out
 
 
 def fit_bmi(data: Mapping[str, Mapping[str, FloatArray]]) -> dict[str, GyroParams]:
-    """One gyro per plateau, fitted on the plateau's first half."""
-    return {s: fit_session(_half(d, second=False)) for s, d in data.items()}
+    """One gyro per plateau, fitted on the whole plateau (a description of it)."""
+    return {s: fit_session(d) for s, d in data.items()}

@@ -116,22 +116,27 @@ def ramp_residual_c(
 
 
 def fit_bow(*, seeds: Sequence[int], base: ChamberModel | None = None,
-            iterations: int = 6) -> ChamberModel:
+            iterations: int = 6, fixed_b: float | None = None,
+            fixed_p: float | None = None) -> ChamberModel:
     """Chamber bow amplitude and its ramp-rate exponent through Fig. 6's two points.
 
-    Two parameters, two points: an in-sample fit (no held-out Fig. 6 data exist).
-    Fixed-point iteration on bow_c(r) = b·(r / 1 °C/min)^p: p moves by
-    ln(measured ratio / simulated ratio) / ln(r30 / r60), b by the 60-min ratio.
+    Two parameters, two points: an exactly determined, in-sample fit (no held-out
+    Fig. 6 data exist). Fixed-point iteration on bow_c(r) = b·(r / 1 °C/min)^p: p
+    moves by ln(measured ratio / simulated ratio) / ln(r30 / r60), b by the 60-min
+    ratio. ``fixed_b``/``fixed_p`` hold one at a value (the other is fitted).
     """
     from dataclasses import replace
 
     model = replace(base or ChamberModel(), bow_reference_rate_c_per_min=1.0)
     rates = {m: 70.0 / m for m in TANG_FIG6}
-    p, b = 0.5, model.bow_c
+    p = 0.5 if fixed_p is None else fixed_p
+    b = model.bow_c if fixed_b is None else fixed_b
     for _ in range(iterations):
         model = replace(model, bow_c=b, bow_rate_exponent=p)
         sim = {m: ramp_residual_c(model, m, seeds=seeds) for m in TANG_FIG6}
         ratio_meas = TANG_FIG6[30][1] / TANG_FIG6[60][1]
-        p += math.log(ratio_meas / (sim[30] / sim[60])) / math.log(rates[30] / rates[60])
-        b *= TANG_FIG6[60][1] / sim[60]
+        if fixed_p is None:
+            p += math.log(ratio_meas / (sim[30] / sim[60])) / math.log(rates[30] / rates[60])
+        if fixed_b is None:
+            b *= TANG_FIG6[60][1] / sim[60]
     return replace(model, bow_c=b, bow_rate_exponent=p)
