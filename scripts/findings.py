@@ -567,8 +567,9 @@ def main() -> None:
         f"{hot_line:.2f} Hz line (below): a sinusoid of frequency f₀ peaks in Allan "
         f"deviation at τ ≈ 0.371/f₀ = {0.371 / hot_line:.2f} s (IEEE Std 952-1997). "
         "So no white-noise level describes either plateau; a per-run white level can match "
-        "the std, not the spectrum. §7 adds the lines and a per-axis level per session "
-        "(profile `bmi270`), fitted on the first halves and scored on the second.",
+        "the std, not the spectrum. §7 fits the lines and a per-axis level on one session "
+        "and scores them on the other: only the y axis' white level transfers both ways "
+        "(profile `bmi270`).",
         "",
         "Spectral lines: the strongest PSD bin of each band, listed if it is at least "
         f"{LINE_PROMINENCE:g}× the band's median PSD in the whole plateau and in each half, "
@@ -691,7 +692,9 @@ def main() -> None:
         "switch-on offsets only move a5 in per-run fits; in a pooled fit without per-run "
         "offsets they would leak into every coefficient (`diagnose` fits one offset per run). "
         "§7 fits this slow noise and, as the alternative, a per-run ΔT sensitivity on "
-        "Table 1's rows 5/20/40/60 min and scores both on the other rows and Table 2.",
+        "Table 1's rows 5/20/40/60 min: the slow noise misses its own fit target (Table 2's "
+        "\"t2 60 min\" RMS) and the ΔT sensitivity loses to its null on the held-out rows, "
+        "so neither is in a profile.",
         "",
         "## 3. Table 2 and Fig. 6",
         "",
@@ -703,14 +706,17 @@ def main() -> None:
         f"(RMS {t2['t2_t2 5 min']:.3f} °/s) while in the paper it is only 39 % worse than "
         "the T/ΔT model. The simulator's default ΔT coefficient (0.05 °/s per °C on x) "
         "makes a fast ramp's gradient dominate the bias; Tang's gyro responds far less "
-        "to ΔT. §7 calibrates the simulator's ΔT terms (profile `tang2013`: fitted on "
-        "part of Table 1 and Table 2, scored on the rest). Fig. 6: the simulator's chamber bow "
+        "to ΔT. §7 fits a ΔT scale on part of Table 1 and Table 2 and tests it on the rest "
+        "against the default, zero and its sign flip: small values beat the default clearly, "
+        "but the fitted one beats neither zero nor its flip, so the `tang2013` profile keeps "
+        "the default's ΔT terms. Fig. 6: the simulator's chamber bow "
         "(2.2 °C) gives the same ramp residual "
         f"for both ramps ({t2['fig6_30_res']:.2f} and {t2['fig6_60_res']:.2f} °C); "
         "measured, the faster ramp deviates more (0.84 vs 0.57 °C). A bow that grows "
         "with ramp rate (≈ rate^0.56 from the two points) would match both; the "
-        "diagnosis cannot test it without chamber logs. §7's `tang2013` profile has one, "
-        "fitted through both points (in-sample: no third point to score it on).",
+        "diagnosis cannot test it without chamber logs. §7 fits one through both points "
+        "(2 parameters through 2 points: its values are shown, no gain); no held-out "
+        "statistic depends on it, so no profile uses it.",
         "",
         "## 4. The diagnosis on data with known answers",
         "",

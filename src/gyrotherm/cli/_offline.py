@@ -316,8 +316,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                     help="name runs valid-… and draw seeds apart from fitting runs")
     conv.add_json_option(ch, what="the files written (path, rows, duration_s)")
     ch.add_argument("--profile", choices=PROFILE_NAMES, default="default",
-                    help="simulator profile: default, or calibrated to measurements "
-                    "(tang2013, bmi270; docs/findings.md §7)")
+                    help="simulator profile: default, or tested against measurements "
+                    "(tang2013, bmi270: what beat its null tests; docs/findings.md §7)")
     ch.set_defaults(func=cmd_sim_chamber)
     from gyrotherm.cli import _stream as _stream_cli
 
