@@ -95,3 +95,31 @@ def test_a_real_lag_is_still_found(sweep: ModuleType, seed: int, condition: int)
     assert row["found"] == ["thermal_lag"]
     assert row["parameter_errors"]["thermal_lag"] < 0.5
     assert row["not_resolvable"] == []
+
+
+def test_a_drift_next_to_an_undecayed_warmup_is_not_resolvable_in_these_runs() -> None:
+    """Dev seed 3, logistic warm-up (flat to t½ ≈ 700 s), reference readout: the
+    catalogue's exponential comes out with τ ≈ 1800 s and a drift makes up its tail;
+    the runs (6000 s) have too little beyond 3τ to tell them apart, so the drift is a
+    'not resolvable in these runs' verdict, not a finding."""
+    runs, _ = variant_runs(SynthConfig(duration_s=6000.0), shapes={"logistic_warmup": {}},
+                           n_runs=4, seed=3)
+    d = diagnose(runs, simulate=False)
+    assert "drift" not in {f.effect for f in d.findings}
+    (verdict,) = [v for v in d.not_resolvable if v.effect == "drift"]
+    assert verdict.verdict == "not resolvable in these runs"
+    assert verdict.params["warmup_tau_s"] > verdict.params["duration_s"] / 6.0
+    assert "3τ" in verdict.reason
+
+
+def test_a_drift_next_to_a_short_warmup_is_still_found() -> None:
+    """Dev seed 2: a warm-up of τ = 300 s and a drift, both injected: the warm-up has
+    decayed within the first 900 s, so the drift is resolvable and named."""
+    runs, truth = variant_runs(SynthConfig(duration_s=6000.0, effects={
+        "warmup": {"tau_s": 300.0}, "drift": {}}), n_runs=4, seed=2)
+    d = diagnose(runs, simulate=False)
+    found = {f.effect: f.params for f in d.findings}
+    assert {"warmup", "drift"} <= set(found)
+    true = truth.base.effects["drift"]["slope_dps_per_h"]
+    assert found["drift"]["slope_dps_per_h"] == pytest.approx(true, rel=0.3)
+    assert d.not_resolvable == ()

@@ -57,6 +57,7 @@ from gyrotherm.analysis._prep import (
 from gyrotherm.analysis._resolve import NotResolvable, drop_unresolved_lag, lag_limit
 from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._select import Selection, select
+from gyrotherm.analysis._separable import drop_inseparable_drift
 from gyrotherm.analysis._unexplained import Unexplained, search_unexplained
 from gyrotherm.codecs import AXES, Run
 from gyrotherm.compensation import Scaling
@@ -212,12 +213,11 @@ def diagnose(
     final_ev, lag_verdict = drop_unresolved_lag(
         selector, final_ev, lag_limit(readouts, prepared, features=features), readouts,
         margin=margin, seed=seed)
-    verdicts = (lag_verdict,) if lag_verdict else ()
-    if lag_verdict:
-        lag_note = ("thermal_lag not reported as a physical finding (not resolvable at this "
-                    f"readout): {lag_verdict.reason}")
-        notes.append(lag_note)
-        say(lag_note)
+    final_ev, drift_verdict = drop_inseparable_drift(selector, final_ev)
+    verdicts = tuple(v for v in (lag_verdict, drift_verdict) if v)
+    for v in verdicts:
+        notes.append(f"{v.effect} not reported as a physical finding ({v.verdict}): {v.reason}")
+        say(notes[-1])
     say("testing residual structure no catalogued effect explains")
     search = search_unexplained(selector, final_ev, margin=margin)
     final_ev = search.catalogued

@@ -97,9 +97,12 @@ class NotResolvable:
     effect: str
     params: Mapping[str, float]
     reason: str
+    verdict: str = VERDICT
+    """``"not resolvable at this readout"``, or ``"not resolvable in these runs"`` where the
+    runs' length, not the readout, is the limit (:mod:`._separable`)."""
 
     def to_dict(self) -> dict[str, Any]:
-        return {"effect": self.effect, "verdict": VERDICT, "params": dict(self.params),
+        return {"effect": self.effect, "verdict": self.verdict, "params": dict(self.params),
                 "reason": self.reason}
 
 
