@@ -60,7 +60,11 @@ def test_bootstrap_quantile_is_seeded_and_brackets_the_median() -> None:
     assert med == pytest.approx(0.05) and lo <= med <= hi
 
 
-@pytest.mark.parametrize("seed", EVAL_SEEDS)
+@pytest.mark.parametrize("seed", [
+    pytest.param(s, marks=pytest.mark.xfail(strict=True, reason=(
+        "evaluation result (commit 7d58088, docs/findings.md §6): an unexplained structure "
+        "in ΔT, [-0.39, 1.26] °C, is named with nothing injected")))
+    if s == 102 else s for s in EVAL_SEEDS])
 def test_nothing_injected_at_the_corner_names_nothing(sweep: ModuleType, seed: int) -> None:
     """Eval seeds: at 1 °C / 1.3 s with 3 runs and nothing injected, the diagnosis names
     no effect (a lag the readout produces is declared not resolvable instead)."""
