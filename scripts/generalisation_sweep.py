@@ -57,13 +57,17 @@ from gyrotherm.analysis import SynthConfig, diagnose
 from gyrotherm.analysis._intervals import bootstrap_quantile, wilson
 from gyrotherm.analysis._synth_variants import VariantTruth, variant_runs
 
-DEV_SEEDS = (1, 2, 3, 4, 5, 6)
+DEV_SEEDS = (1, 2, 3, 4, 5, 6, 101, 102, 103, 104, 105)
 """Development seeds: 1, 2 the original sweep's, 3–6 seen since (the issue-19 review
-looked at 3, 4; the lag guard was developed on 1, 5, 6). Guards are tuned on these only."""
-EVAL_SEEDS = (101, 102, 103, 104, 105)
-"""Evaluation seeds, fixed (commit of this line) before any result on them was seen;
-never used while developing; reported separately from DEV_SEEDS."""
-SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS}
+looked at 3, 4; the lag guard was developed on 1, 5, 6); 101–105 the first evaluation
+set, run once at commit 7d58088 (docs/findings.md §6) and development seeds since.
+Guards are tuned on these only."""
+EVAL_SEEDS = (201, 202, 203, 204, 205)
+"""Evaluation seeds (second set), fixed (commit of this line) before any result on them
+was seen; never used while developing; reported separately from DEV_SEEDS."""
+FIRST_EVAL_SEEDS = (101, 102, 103, 104, 105)
+"""The first evaluation set, fixed at commit ec6247e and run once at 7d58088."""
+SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS}
 DURATION_S = 6000.0
 STEP_AT_C = 30.0
 CHECKED = {
