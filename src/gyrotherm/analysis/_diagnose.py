@@ -12,9 +12,12 @@
 3. Select effects (forward selection with held-out and penalised criteria);
    leave out a ``thermal_lag`` the temperature readout cannot resolve
    (:mod:`._resolve`: below τ_min, or no better than on readout replays
-   without a lag); test residual structure no catalogued effect explains
-   (:mod:`._unexplained`: a spline in T, ΔT or time since power-on, reported
-   as an ``unexplained`` finding, not part of the extended model); refit the
+   without a lag), likewise a hysteresis, and a drift next to a warm-up that
+   has not decayed (:mod:`._separable`) — each a ``not_resolvable`` verdict with
+   its reason, not a finding; test residual structure no catalogued effect
+   explains (:mod:`._unexplained`: a spline in T, ΔT or time since power-on,
+   reported as an ``unexplained`` finding, not part of the extended model; one
+   narrower than the readout can place is a verdict, :mod:`._resolution`); refit the
    extended model, replay it through the extended simulator, and report
    (schema ``gyrotherm.diagnosis/1``).
 4. Optionally (:func:`export_calibration`) write the chosen extended model as a
@@ -54,11 +57,17 @@ from gyrotherm.analysis._prep import (
     prepare,
     with_tau,
 )
-from gyrotherm.analysis._resolve import NotResolvable, drop_unresolved_lag, lag_limit
+from gyrotherm.analysis._resolution import Resolution, unresolved
+from gyrotherm.analysis._resolve import (
+    NotResolvable,
+    drop_readout_hysteresis,
+    drop_unresolved_lag,
+    lag_limit,
+)
 from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._select import Selection, select
 from gyrotherm.analysis._separable import drop_inseparable_drift
-from gyrotherm.analysis._unexplained import Unexplained, search_unexplained
+from gyrotherm.analysis._unexplained import VARIABLES, Unexplained, search_unexplained
 from gyrotherm.codecs import AXES, Run
 from gyrotherm.compensation import Scaling
 
@@ -213,13 +222,28 @@ def diagnose(
     final_ev, lag_verdict = drop_unresolved_lag(
         selector, final_ev, lag_limit(readouts, prepared, features=features), readouts,
         margin=margin, seed=seed)
+    final_ev, hyst_verdict = drop_readout_hysteresis(
+        selector, final_ev, lag_limit(readouts, prepared, features=features), readouts,
+        margin=margin, seed=seed)
     final_ev, drift_verdict = drop_inseparable_drift(selector, final_ev)
-    verdicts = tuple(v for v in (lag_verdict, drift_verdict) if v)
+    verdicts = tuple(v for v in (lag_verdict, hyst_verdict, drift_verdict) if v)
     for v in verdicts:
         notes.append(f"{v.effect} not reported as a physical finding ({v.verdict}): {v.reason}")
         say(notes[-1])
     say("testing residual structure no catalogued effect explains")
-    search = search_unexplained(selector, final_ev, margin=margin)
+    resolution = Resolution(lsb_c=float(np.median([r.lsb_c for r in readouts])), tau_s=tau_s,
+                            hold_s=float(np.median([r.period_s for r in readouts])))
+    variables = list(VARIABLES)
+    while True:  # a structure the readout cannot place: a verdict, and search without it
+        search = search_unexplained(selector, final_ev, margin=margin, variables=variables)
+        too_fine = [v for v in (unresolved(u, resolution) for u in search.unexplained) if v]
+        if not too_fine:
+            break
+        for v in too_fine:
+            verdicts = (*verdicts, v)
+            variables.remove(v.effect.split(":", 1)[1])
+            notes.append(f"{v.effect} not reported as a finding ({v.verdict}): {v.reason}")
+            say(notes[-1])
     final_ev = search.catalogued
     if search.dropped:
         notes.append(f"dropped {', '.join(search.dropped)}: with the unexplained correction it "

@@ -126,12 +126,14 @@ def replay_readout(readouts: Sequence[Readout]) -> Readout:
 
 def replay_lag(
     selector: Selector, final: Evaluation, readouts: Sequence[Readout], crossing_s: float,
-    *, seed: int = 0, replays: int = 2,
+    *, seed: int = 0, replays: int = 2, effect: str = "thermal_lag",
 ) -> LagReplay:
-    """Real and null held-out gains of ``final``'s ``thermal_lag`` (module docstring)."""
+    """Real and null held-out gains of ``final``'s ``effect`` (a ``thermal_lag`` unless
+    told otherwise; module docstring)."""
+    from gyrotherm.analysis._effects import TAU_GRIDS
     from gyrotherm.analysis._select import _refine_all
 
-    rest = {k: v for k, v in final.effects.items() if k != "thermal_lag"}
+    rest = {k: v for k, v in final.effects.items() if k != effect}
     without = _refine_all(selector, selector.evaluate(rest))
     real = without.heldout_rms_dps / final.heldout_rms_dps
     tau = float(np.median([np.median(p.delta_t_c[p.rate_c_per_s != 0]
@@ -159,8 +161,9 @@ def replay_lag(
                                     delta_t_c=tau * rate_c, rate_dps=y))
         null_sel = Selector(replayed, selector.scaling)
         null_without = _refine_all(null_sel, null_sel.evaluate(rest))
-        null_with = _refine_all(null_sel, null_sel.evaluate({**rest, "thermal_lag": 0.0},
-                                                            search="thermal_lag"))
+        search = effect if effect in TAU_GRIDS else None
+        null_with = _refine_all(null_sel, null_sel.evaluate({**rest, effect: 0.0},
+                                                            search=search))
         gains.append(null_without.heldout_rms_dps / null_with.heldout_rms_dps)
-        taus.append(float(null_with.effects["thermal_lag"]))
+        taus.append(float(null_with.effects[effect]))
     return LagReplay(real, tuple(gains), tuple(taus), how)

@@ -30,7 +30,11 @@ runs without any lag produce through the same readout
   replay's temperature is smoother than the device's, so its null gain is a
   lower bound; the τ the ripple selects is robust to that).
 
-An unresolved lag is left out of the model and reported as a
+A ``hysteresis`` gets the same replay (:func:`drop_readout_hysteresis`: the
+reading's code steps also switch the direction state): it must beat the null
+gain by the margin.
+
+An unresolved lag or hysteresis is left out of the model and reported as a
 :class:`NotResolvable` verdict ("not resolvable at this readout") with the
 reason, and in the notes.
 """
@@ -149,3 +153,34 @@ def drop_unresolved_lag(
     reason = (f"{why}; held-out RMS without it {without.heldout_rms_dps:.5f} vs "
               f"{final.heldout_rms_dps:.5f} °/s")
     return without, NotResolvable("thermal_lag", params, reason)
+
+
+def drop_readout_hysteresis(
+    selector: Selector, final: Evaluation, limit: LagLimit, readouts: Sequence[Readout],
+    *, margin: float = 0.10, seed: int = 0,
+) -> tuple[Evaluation, NotResolvable | None]:
+    """``final`` without its ``hysteresis`` (the others refitted) and the verdict, when
+    its held-out gain is not ``margin`` above what :data:`NULL_REPLAYS` readout replays
+    without a hysteresis give one (:func:`~._null_replay.replay_lag` with
+    ``effect="hysteresis"``: the quantised reading's steps also switch the direction
+    state); else ``final`` and None."""
+    from gyrotherm.analysis._select import _refine_all
+
+    width = final.effects.get("hysteresis")
+    if width is None:
+        return final, None
+    rep = replay_lag(selector, final, readouts, limit.lsb_crossing_s, seed=seed,
+                     replays=NULL_REPLAYS, effect="hysteresis")
+    if rep.real_gain >= (1.0 + margin) * rep.null_gain:
+        return final, None
+    rest = {k: v for k, v in final.effects.items() if k != "hysteresis"}
+    without = _refine_all(selector, selector.evaluate(rest))
+    reason = (f"held-out gain ×{rep.real_gain:.3f} (transition {width:.2f} °C), but replays of "
+              f"the runs' readout (hold {limit.hold_s:.2f} s, LSB crossing "
+              f"{limit.lsb_crossing_s:.1f} s on the ramps; from the {rep.truth}) on a model "
+              f"without a hysteresis already give one ×{rep.null_gain:.3f}: not "
+              f"×{1.0 + margin:.2f} above what the readout alone produces; held-out RMS "
+              f"without it {without.heldout_rms_dps:.5f} vs {final.heldout_rms_dps:.5f} °/s")
+    params = {"transition_c": float(width), "heldout_gain": rep.real_gain,
+              "null_gain": rep.null_gain}
+    return without, NotResolvable("hysteresis", params, reason)
