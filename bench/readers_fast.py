@@ -95,9 +95,9 @@ def decode(fmt: str, path: Path) -> Callable[[], object]:
                 log.close()
         if fmt == "ulog":
             from gyrotherm.readers._fast_ulog import load
-            from gyrotherm.readers._ulog import TOPICS
+            from gyrotherm.readers._ulog import FIELDS, TOPICS
 
-            return load(path, TOPICS)
+            return load(path, TOPICS, fields=FIELDS)
         from gyrotherm.readers._fast_rosbag import gather
 
         return gather(path, ["/imu0/data"], ["/imu0/temperature"])

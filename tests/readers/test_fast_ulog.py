@@ -128,3 +128,60 @@ def test_a_log_pyulog_must_read_carries_a_note(tmp_path: Path) -> None:
     runs = read_ulog(p)
     assert "message type" in runs[0].metadata[FALLBACK_KEY] and end
     assert_same_runs(runs, read_ulog(p, fast=False), note=True)
+
+
+def _pyulog(p: Path) -> object:
+    from pyulog import ULog
+
+    with contextlib.redirect_stdout(io.StringIO()):
+        return ULog(str(p), TOPICS)
+
+
+def test_fields_decode_what_the_reader_reads(tmp_path: Path) -> None:
+    """``fields`` limits the columns to those named (``a|b``: the first the topic
+    has), each equal to pyulog's; a topic lacking one gets every field."""
+    import ulogkit
+
+    two = ulogkit.write(tmp_path / "two.ulg", ulogkit.two_gyros())
+    fast = load(two, TOPICS, fields={"sensor_gyro": ("nope|timestamp_sample|timestamp", "x"),
+                                     "sensor_accel": ("x", "missing")})
+    ref = _pyulog(two)
+    for f, r in zip(fast.data_list, ref.data_list, strict=True):  # type: ignore[attr-defined]
+        want = ["timestamp_sample", "x"] if f.name == "sensor_gyro" else list(r.data)
+        assert list(f.data) == want
+        for k in want:
+            assert f.data[k].dtype == r.data[k].dtype and np.array_equal(f.data[k], r.data[k])
+
+
+def test_a_subscription_added_after_data_began(tmp_path: Path) -> None:
+    """A second batch of ``A`` messages after data of the first (PX4 adds a topic when
+    it first publishes), topics interleaved (no stride), a ``D`` byte inside payloads:
+    every field as pyulog's, and the same runs."""
+    import struct
+
+    import ulogkit
+    from ulogkit import ACCEL_FIELDS, GYRO_FIELDS, _msg, _pack
+
+    rng = np.random.default_rng(7)
+    out = ulogkit.header_and_definitions()
+    out += _msg(b"A", struct.pack("<BH", 0, 0) + b"sensor_gyro")
+    t_us = 1_000_000
+    for k in range(400):
+        if k == 150:  # the accel appears later, with msg_id 1
+            out += _msg(b"A", struct.pack("<BH", 0, 1) + b"sensor_accel")
+        t_us += int(rng.integers(900, 1100))
+        x = 785.0 if k % 7 == 0 else float(rng.normal())  # float32 bytes 00 40 44 44: "DD"
+        out += _msg(b"D", struct.pack("<H", 0) + _pack(
+            GYRO_FIELDS, [t_us, t_us - 50, 2, x, 0.25, -0.5, 30.0 + k / 100, 0]))
+        if k >= 150 and rng.random() < 0.6:
+            out += _msg(b"D", struct.pack("<H", 1) + _pack(
+                ACCEL_FIELDS, [t_us + 10, t_us, 1, 0.0, 0.1, 9.8, 30.0, 0]))
+    p = ulogkit.write(tmp_path / "late.ulg", out)
+    fast, ref = load(p, TOPICS), _pyulog(p)
+    assert [(d.name, len(d.data["timestamp"])) for d in fast.data_list] == \
+        [(d.name, len(d.data["timestamp"])) for d in ref.data_list]  # type: ignore[attr-defined]
+    assert [d.name for d in fast.data_list] == ["sensor_accel", "sensor_gyro"]
+    for f, r in zip(fast.data_list, ref.data_list, strict=True):  # type: ignore[attr-defined]
+        for k, v in r.data.items():
+            assert np.array_equal(f.data[k], v)
+    same_reading(p)

@@ -59,6 +59,10 @@ STATUS_TOPIC = "vehicle_status"
 ARMED_TOPIC = "actuator_armed"
 ARMING_STATE_ARMED = 2
 TOPICS = [GYRO_TOPIC, ACCEL_TOPIC, STATUS_TOPIC, ARMED_TOPIC]
+FIELDS = {GYRO_TOPIC: ("timestamp_sample|timestamp", "device_id", "x", "y", "z", "temperature"),
+          ACCEL_TOPIC: ("timestamp_sample|timestamp", "x", "y", "z"),
+          STATUS_TOPIC: ("timestamp", "arming_state"), ARMED_TOPIC: ("timestamp", "armed")}
+"""What the reader reads of each topic (the fast path decodes only those)."""
 """``vehicle_status.arming_state`` of an armed vehicle (PX4 ``msg/VehicleStatus.msg``)."""
 _BUS_TYPES = {0: "unknown", 1: "I2C", 2: "SPI", 3: "UAVCAN", 4: "simulation",
               5: "serial", 6: "MAVLink"}
@@ -98,7 +102,7 @@ def _load_fast(path: Path) -> tuple[Any, str, int | None, str]:
     from gyrotherm.readers._fast_ulog import load
 
     try:
-        fast = load(path, TOPICS)
+        fast = load(path, TOPICS, fields=FIELDS)
     except Fallback as exc:
         return *_load(path), None, f"read by pyulog: {exc}"
     return fast, "", fast.bytes_cut_at_end, ""
