@@ -127,13 +127,16 @@ def _gather(path: Path, log: Any, name: str, listed: NDArray[np.int64], wanted: 
         raise RunFileError(f"{path}: message {name!r}: FMT length {fmt.len} does not match "
                            f"its format {fmt.format!r}")
     buf = np.frombuffer(log.data_map, dtype=np.uint8)
-    raw = fields_at(buf, offs + 3, dtype, tuple(f"f{columns.index(c)}" for c in wanted))
+    raw = fields_at(buf, offs + 3, dtype, tuple(f"f{columns.index(c)}" for c in wanted),
+                    as_dtype=np.float64)
     out: dict[str, FloatArray] = {}
     for c in wanted:
         i = columns.index(c)
         mult = fmt.msg_mults[i]
-        v = raw.pop(f"f{i}").astype(np.float64)
-        out[c] = v * mult if mult is not None else v
+        v = raw.pop(f"f{i}")
+        if mult is not None:
+            v *= mult
+        out[c] = v
     return out, len(listed) - len(offs)
 
 
