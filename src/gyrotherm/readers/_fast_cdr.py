@@ -61,13 +61,14 @@ def _header(buf: NDArray[np.uint8], start: IntArray, size: IntArray, body_size: 
     sec = head["sec"].astype(np.int64)
     nsec = head["nsec"].astype(np.int64)
     n = head["n"].astype(np.int64)
-    if np.any(n < 1) or np.any(12 + n > size - 4):
+    if np.any((n < 1) | (12 + n > size - 4)):
         raise Fallback("a CDR frame_id length out of bounds")
     if np.any(buf[d + 12 + n - 1] != 0):
         raise Fallback("a CDR frame_id without its terminating NUL")
     body = d + ((12 + n + 7) & ~7)
     end = body + body_size
-    if np.any(end > start + size) or np.any(end + 3 < start + size):
+    stop = start + size
+    if np.any((end > stop) | (end + 3 < stop)):
         raise Fallback("a CDR message size other than its type's")
     frame, frames = _frames(buf, d + 12, n - 1)
     return Header(sec * 1_000_000_000 + nsec, frame, frames, body)
@@ -79,8 +80,9 @@ def _frames(buf: NDArray[np.uint8], at: IntArray, length: IntArray
     first)."""
     code = np.zeros(len(at), dtype=np.intp)
     names: list[str] = []
-    for n in np.unique(length).tolist():
-        sel = np.flatnonzero(length == n)
+    one = len(length) and bool(np.all(length == length[0]))  # the usual: one frame id
+    for n in [int(length[0])] if one else np.unique(length).tolist():
+        sel = np.arange(len(at)) if one else np.flatnonzero(length == n)
         if n == 0:
             values: NDArray[Any] = np.zeros(len(sel), dtype="S1")
         else:
