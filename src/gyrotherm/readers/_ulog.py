@@ -201,7 +201,9 @@ def _run(path: Path, gyro: Any, accel: Any, sha: str, corrupt: bool, cut_bytes: 
         raise RunFileError(f"{path}: {where}: missing field(s) {missing} "
                            f"(fields: {sorted(data)})")
     t, time_field = _time_s(data)
-    ids = np.unique(np.asarray(data["device_id"], dtype=np.int64))
+    dev = np.asarray(data["device_id"], dtype=np.int64)
+    one = len(dev) > 0 and bool(np.all(dev == dev[0]))  # the usual: one device throughout
+    ids = dev[:1] if one else np.unique(dev)
     device_id = int(ids[-1]) if len(ids) else 0
     accel_mps2: dict[str, FloatArray] | None = None
     accel_label = "none"
