@@ -6,7 +6,8 @@ the hot path); element 0 is the message kind, element 1 the schema version::
     rate    [1, 1, seq, sensor_time_s, receive_time_s,
              rate_x, rate_y, rate_z, raw_x, raw_y, raw_z, bias_x, bias_y, bias_z, flags]
     state   [2, 1, seq, sensor_time_s, receive_time_s, temperature_c, temperature_std_c,
-             delta_t_c, delta_t_std_c, bias_x, bias_y, bias_z, flags, {effects}, [zero]]
+             delta_t_c, delta_t_std_c, bias_x, bias_y, bias_z, flags, {effects}, [zero],
+             [learn]]
     health  [3, 1, seq, sensor_time_s | nil, receive_time_s, uptime_s, frames_received,
              frames_published, {reason: count}, flags, calibration_id, counter_jumps]
     calibration reply
@@ -29,6 +30,11 @@ the hot path); element 0 is the message kind, element 1 the schema version::
   boot-time zero; ``effects`` is then always written, ``{}`` when empty):
   ``[status, zero_x_dps, zero_y_dps, zero_z_dps]`` (:class:`ZeroState`; status
   0 off, 1 pending, 2 done, 3 failed; the offsets are part of ``bias_dps``).
+* ``learn`` (state, appended within schema 1, present only when the daemon runs
+  ``[learn]``; ``effects`` and ``zero`` are then always written, ``zero`` as
+  ``[0, 0.0, 0.0, 0.0]`` (off) without a boot-time zero): ``[collecting,
+  adopted_time_s, status, warmups_used, {reason: count}, t_min_c, t_max_c,
+  candidate_rms_dps, current_rms_dps, need_warmups]`` (:class:`LearnProgress`).
 
 Version rule: a decoder accepts only the schema version it knows (1). Fields may be
 *appended* within a version (decoders ignore trailing elements) and new flag bits
@@ -184,6 +190,38 @@ class RateMessage:
 
 
 @dataclass(frozen=True, slots=True)
+class LearnProgress:
+    """Learning in the field (the state message's ``learn``; docs/wire-format.md)."""
+
+    collecting: bool
+    """A warm-up is being collected now (since the latest power-on)."""
+    adopted_time_s: float
+    """When the learnt calibration in use was adopted (Unix time, s); NaN: none."""
+    status: str
+    """One line: ``learning: need 2 more warm-ups``, ``adopted at …`` …"""
+    warmups_used: int
+    rejected: Mapping[str, int]
+    """Warm-ups left out, by reason (``motion``, ``too_short``, ``clock_jump``,
+    ``restart``)."""
+    t_min_c: float
+    """Lowest temperature covered by the warm-ups used, °C (NaN: none yet)."""
+    t_max_c: float
+    candidate_rms_dps: float
+    """Held-out bias error of the learnt model, the largest over the axes, °/s (NaN:
+    not validated yet)."""
+    current_rms_dps: float
+    """The same for the calibration in use (no compensation without one), °/s."""
+    need_warmups: int
+    """Warm-ups still needed before the gates can pass (0: enough)."""
+
+    def to_list(self) -> list[Any]:
+        return [self.collecting, float(self.adopted_time_s), self.status, self.warmups_used,
+                dict(self.rejected), float(self.t_min_c), float(self.t_max_c),
+                float(self.candidate_rms_dps), float(self.current_rms_dps),
+                self.need_warmups]
+
+
+@dataclass(frozen=True, slots=True)
 class StateMessage:
     """Thermal state (key ``…/state``) at the temperature rate: T, ΔT (°C), bias (°/s)."""
 
@@ -202,6 +240,8 @@ class StateMessage:
     zero: ZeroState | None = None
     """The boot-time zero (appended in schema 1): None when the daemon runs none, or
     from a publisher that predates it."""
+    learn: LearnProgress | None = None
+    """Learning progress (appended in schema 1): None without ``[learn]``."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -286,17 +326,23 @@ def encode_rate_values(
 
 def encode_state(msg: StateMessage) -> bytes:
     """Encode a state message (13-element array; 14 with ``effects``, only when not
-    empty; 15 with ``zero``, ``effects`` then written even when empty)."""
+    empty; 15 with ``zero``, ``effects`` then written even when empty; 16 with
+    ``learn``, ``zero`` then written as off when there is none)."""
     b = msg.bias_dps
     out: list[Any] = [2, SCHEMA_VERSION, msg.seq, msg.sensor_time_s, msg.receive_time_s,
            msg.temperature_c, msg.temperature_std_c, msg.delta_t_c, msg.delta_t_std_c,
            b[0], b[1], b[2], int(msg.flags)]  # fmt: skip
-    if msg.effects or msg.zero is not None:
+    learn = msg.learn
+    if msg.effects or msg.zero is not None or learn is not None:
         out.append({a: [float(e[0]), float(e[1]), int(e[2]), float(e[3]), float(e[4])]
                     for a, e in msg.effects.items()})
     if msg.zero is not None:
         z = msg.zero.offset_dps
         out.append([int(msg.zero.status), float(z[0]), float(z[1]), float(z[2])])
+    elif learn is not None:
+        out.append([0, 0.0, 0.0, 0.0])  # off: an older decoder reads a valid zero
+    if learn is not None:
+        out.append(learn.to_list())
     return _pack(out, "state")
 
 

@@ -28,6 +28,7 @@ from gyrotherm.codecs._wire import (
     AxisEffects,
     CalibrationInfo,
     HealthMessage,
+    LearnProgress,
     Message,
     MessageKind,
     Payload,
@@ -139,6 +140,22 @@ def _effects(v: Any, i: int, name: str, what: str) -> dict[str, AxisEffects]:
     return out
 
 
+def _learn(v: Any, i: int, name: str, what: str) -> LearnProgress:
+    if type(v) is not list or len(v) < 10:
+        raise _fail(what, i, name, v, "is not an array of 10 elements")
+    if type(v[0]) is not bool:
+        raise _fail(what, i, f"{name}.collecting", v[0], "is not a boolean")
+    return LearnProgress(v[0], _float(v[1], i, f"{name}.adopted_time_s", what),
+                         _str(v[2], i, f"{name}.status", what),
+                         _u64(v[3], i, f"{name}.warmups_used", what),
+                         _drops(v[4], i, f"{name}.rejected", what),
+                         _float(v[5], i, f"{name}.t_min_c", what),
+                         _float(v[6], i, f"{name}.t_max_c", what),
+                         _float(v[7], i, f"{name}.candidate_rms_dps", what),
+                         _float(v[8], i, f"{name}.current_rms_dps", what),
+                         _u64(v[9], i, f"{name}.need_warmups", what))
+
+
 def _zero(v: Any, i: int, name: str, what: str) -> ZeroState:
     if type(v) is not list or len(v) < 4:
         raise _fail(what, i, name, v, "is not an array of 4 elements")
@@ -184,7 +201,8 @@ _SPECS: dict[MessageKind, list[tuple[str, _Check]]] = {
 #: Fields appended within schema 1: (name, check, value when the array ends before it).
 _APPENDED: dict[MessageKind, list[tuple[str, _Check, Any]]] = {
     MessageKind.HEALTH: [("counter_jumps", _u64, 0)],
-    MessageKind.STATE: [("effects", _effects, {}), ("zero", _zero, None)],
+    MessageKind.STATE: [("effects", _effects, {}), ("zero", _zero, None),
+                        ("learn", _learn, None)],
 }
 
 
@@ -198,7 +216,8 @@ def _build_rate(v: list[Any]) -> RateMessage:
 
 def _build_state(v: list[Any]) -> StateMessage:
     return StateMessage(v[0], v[1], v[2], v[3], v[4], v[5], v[6], (v[7], v[8], v[9]), v[10],
-                        dict(v[11]) if len(v) > 11 else {}, v[12] if len(v) > 12 else None)
+                        dict(v[11]) if len(v) > 11 else {}, v[12] if len(v) > 12 else None,
+                        v[13] if len(v) > 13 else None)
 
 
 def _build_health(v: list[Any]) -> HealthMessage:

@@ -38,16 +38,18 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from gyrotherm._errors import CalibrationError
 from gyrotherm.compensation._calibration import Calibration, ValidRange
-from gyrotherm.compensation._fit import RunFeatures
 from gyrotherm.compensation._models import Scaling, get_model
 from gyrotherm.estimators import EstimatorConfig
+
+if TYPE_CHECKING:  # the fitting module is offline; the daemon's [learn] mode needs none of it
+    from gyrotherm.compensation._fit import RunFeatures
 
 FloatArray = NDArray[np.float64]
 
@@ -244,16 +246,22 @@ def heldout_bias_rms(stats: Sequence[WarmupStats], axis: str,
 
 
 def decide(stats: Sequence[WarmupStats], current: Calibration | None,
-           axes: Sequence[str], *, margin: float = ADOPT_MARGIN) -> Decision:
-    """Whether the calibration learnt from ``stats`` should replace ``current``."""
+           axes: Sequence[str], *, margin: float = ADOPT_MARGIN,
+           min_warmups: int | None = None, min_start_span_c: float | None = None
+           ) -> Decision:
+    """Whether the calibration learnt from ``stats`` should replace ``current``;
+    ``min_warmups`` and ``min_start_span_c`` override :data:`GATES` (the daemon's
+    ``[learn]`` table; at least 3 warm-ups are always needed)."""
     reasons: list[str] = []
     span = (max(w.start_c for w in stats) - min(w.start_c for w in stats)) if stats else 0.0
-    if len(stats) < GATES["min_warmups"]:
-        reasons.append(f"warm-ups: {len(stats)} at rest, at least {GATES['min_warmups']:g} "
+    need_n = max(int(GATES["min_warmups"]), min_warmups or 0)
+    need_span = GATES["min_start_span_c"] if min_start_span_c is None else min_start_span_c
+    if len(stats) < need_n:
+        reasons.append(f"warm-ups: {len(stats)} at rest, at least {need_n:g} "
                        "needed (one is held out at a time)")
-    if span < GATES["min_start_span_c"]:
+    if span < need_span:
         reasons.append(f"start temperatures span {span:.1f} °C, at least "
-                       f"{GATES['min_start_span_c']:g} °C needed (T and ΔT move together "
+                       f"{need_span:g} °C needed (T and ΔT move together "
                        "within one warm-up; only different ambients separate them)")
     if reasons:
         return Decision(False, tuple(reasons), len(stats), span, math.inf)

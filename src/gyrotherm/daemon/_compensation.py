@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -113,6 +114,9 @@ class Compensation:
         self.t_on_s = math.nan  # t_on fed to the latest step, s
         self._cached: tuple[tuple[float, float, float], StatusFlags] | None = None
         self._restore: EffectsSnapshot | None = None
+        self.power_on_listener: Callable[[float, bool, bool, bool], None] | None = None
+        """Called at every power-on with (time_s, first, time_base, restored): the
+        ``[learn]`` mode (:mod:`gyrotherm.daemon._learner`)."""
         self.set_calibration(calibration)
 
     def set_calibration(self, calibration: Calibration | None) -> None:
@@ -224,6 +228,8 @@ class Compensation:
                                          saved_time_s=snap.time_s)
                 log.log(logging.WARNING if "dropped" in what else logging.INFO,
                         "boot-time zero after the restart (%s): %s", snap.source, what)
+            if self.power_on_listener is not None:
+                self.power_on_listener(time_s, first, time_base, True)
             return
         if first and snap is not None:
             log.info("saved effects state not restored: first frame at %r s does not continue "
@@ -250,6 +256,8 @@ class Compensation:
                              else "measured again, flagged ZERO_UNVERIFIED when taken")
                 else:
                     z.start(time_s)
+        if self.power_on_listener is not None:
+            self.power_on_listener(time_s, first, time_base, False)
 
     def snapshot(self) -> EffectsSnapshot | None:
         """The state to persist, None before the first step."""

@@ -38,6 +38,10 @@ Example (every key; relative paths are relative to the config file)::
     max_offset_dps = 1.0              # largest offset taken for a switch-on offset, °/s
     deadline_s = 600.0                # no rest window this long after power-on: failed, s
 
+    [learn]                           # optional: learn a calibration from the warm-ups
+    margin_frac = 0.10                # at rest after each power-on (off without the
+                                      # table; keys: gyrotherm.daemon._learn_config)
+
     [zenoh]
     config = "/etc/gyrotherm/zenoh.json5"   # a Zenoh JSON5 file, passed through; or:
     mode = "peer"                           # peer | client | router
@@ -74,6 +78,11 @@ Only with a calibration; the vehicle must be at rest after power-on.
 recording another device is refused at start and on reload, or only logged with
 ``device_mismatch = "warn"`` (:mod:`gyrotherm.daemon._calload`).
 
+``[learn]`` (default: absent, no learning) learns a paper-model calibration from
+the warm-ups at rest after each power-on and adopts it only when held-out warm-ups
+show it better (:mod:`gyrotherm.daemon._learner`, docs/operations.md "Learning a
+calibration on the vehicle"); it needs ``state_dir``.
+
 Errors are :class:`gyrotherm.ConfigError` naming the file and the key.
 """
 
@@ -89,6 +98,7 @@ from gyrotherm._errors import ConfigError
 from gyrotherm._zenoh import keys, session_config
 from gyrotherm.codecs import DEFAULT_DBC_PATH, SignalMap
 from gyrotherm.compensation._zero import ZeroConfig
+from gyrotherm.daemon._learn_config import LearnConfig
 from gyrotherm.estimators import EstimatorConfig
 
 INTERFACES = ("socketcan", "socketcand", "virtual")
@@ -138,6 +148,7 @@ class DaemonConfig:
     zero: ZeroConfig | None = None
     device_id: str | None = None
     device_mismatch: str = "refuse"
+    learn: LearnConfig | None = None
     source: str = "<memory>"
 
 
@@ -185,7 +196,7 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
                           "gyrotherm.daemon.load_vehicle_config (gyrotherm run does)")
     _unknown(data, {"vehicle", "sensor", "calibration", "health_period_s", "can", "estimator",
                     "zenoh", "state_dir", "power_on_gap_s", "zero", "device_id",
-                    "device_mismatch"}, source)
+                    "device_mismatch", "learn"}, source)
     vehicle = _take(data, "vehicle", str, source, None)
     sensor = _take(data, "sensor", str, source, None)
     if vehicle is None or sensor is None:
@@ -281,6 +292,11 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
     est_table = _table(data, "estimator", source)
     zero = (ZeroConfig.from_dict(_table(data, "zero", source), where=f"{source}: [zero]")
             if "zero" in data else None)
+    learn = (LearnConfig.from_dict(_table(data, "learn", source), where=f"{source}: [learn]")
+             if "learn" in data else None)
+    if learn is not None and state_dir is None:
+        raise ConfigError(f"{source}: [learn] needs state_dir (the learnt statistics and "
+                          "the adopted calibration are kept there)")
     return DaemonConfig(
         vehicle=vehicle,
         sensor=sensor,
@@ -294,6 +310,7 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
         zero=zero,
         device_id=device_id,
         device_mismatch=mismatch,
+        learn=learn,
         source=source,
     )
 

@@ -35,6 +35,7 @@ from gyrotherm.compensation import Calibration
 from gyrotherm.daemon._calload import load_daemon_calibration
 from gyrotherm.daemon._config import DaemonConfig
 from gyrotherm.daemon._effects_store import EffectsKeeper
+from gyrotherm.daemon._learner import Learner
 from gyrotherm.daemon._pipeline import Pipeline
 from gyrotherm.daemon._sink import _ZenohSink
 
@@ -65,6 +66,16 @@ class ImuChannel:
                 log.error("%s: calibration refused, this IMU runs uncorrected "
                           "(NO_CALIBRATION) until a reload takes a good file: %s",
                           self.sensor, exc)
+        self.learner: Learner | None = None
+        if config.learn is not None:
+            assert config.state_dir is not None  # parse_config requires it
+            self.learner = Learner(
+                config.learn, vehicle=config.vehicle, sensor=config.sensor,
+                state_dir=config.state_dir, power_on_gap_s=config.power_on_gap_s,
+                estimator=self.calibration.estimator if self.calibration else config.estimator,
+                device_id=config.device_id, device_mismatch=config.device_mismatch)
+            self.calibration, self.calibration_id = self.learner.start(
+                self.calibration, self.calibration_id)
         self.pipeline: Pipeline | None = None
         self.sink: _ZenohSink | None = None
         self.health_seq = 0
@@ -99,9 +110,28 @@ class ImuChannel:
         self.pipeline = pipeline
         self.effects_keeper.restore(pipeline.compensation, self.calibration_id)
         stack.callback(self.save_effects, pipeline, force=True)
+        if self.learner is not None:
+            pipeline.attach_learner(self.learner)
+            self.learner.on_adopt = self._adopt
+            stack.callback(self.learner.shutdown)
         queryable = session.declare_queryable(self.keys.calibration, self.on_query)
         stack.callback(queryable.undeclare)
         return pipeline
+
+    def _adopt(self, calibration: Calibration, calibration_id: str) -> None:
+        """The learner adopted ``calibration`` (called on the frame thread, between two
+        frames): the pipeline, the status line, health and the queryable take it."""
+        assert self.pipeline is not None
+        self.pipeline.set_calibration(calibration)
+        self.calibration, self.calibration_id = calibration, calibration_id
+        self.calibration_error = None
+        self.snapshot = CalibrationInfo(calibration_id, self._calibration_dict(),
+                                        self.snapshot.health)
+
+    def tend_learning(self, now_s: float) -> None:
+        """Housekeeping: a finished learning decision is taken, the state saved now and then."""
+        if self.learner is not None:
+            self.learner.tick(now_s)
 
     def frame_keys(self) -> tuple[int, int]:
         """The lookup keys (id, + EXTENDED_KEY if extended) of this IMU's two messages."""
@@ -148,9 +178,17 @@ class ImuChannel:
         if path is None:
             log.warning("%sSIGHUP: no calibration file configured; nothing to reload", prefix)
             return
+        learner = self.learner
         try:
             cal, cid = self.read_calibration()
+            if learner is not None and learner.adopted:
+                log.info("%scalibration file %s (%s) is valid, but the learnt calibration %s "
+                         "stays in use (remove %s and restart to go back to the file)",
+                         prefix, path, cid, self.calibration_id, learner.learnt_path)
+                return
             pipeline.set_calibration(cal)
+            if learner is not None:
+                learner.set_current(cal, cid)
         except Exception as exc:  # a bad file must never stop the daemon
             self.reload_failures += 1
             log.error("%scalibration reload failed, keeping %s: %s", prefix,

@@ -64,6 +64,7 @@ from gyrotherm.daemon._compensation import (
     POWER_ON_GAP_S,
     Compensation,
 )
+from gyrotherm.daemon._learner import Learner
 from gyrotherm.daemon._timewindow import (
     BAD_TIMESTAMP,
     MAX_ABS_TIME_S,
@@ -146,6 +147,8 @@ class Pipeline(TimeWindow):
         self._power_on_waits_for: str | None = None
         self._zeroing = False  # a boot-time zero is pending: rate frames feed it
         self._decoder = decoder
+        self.learn: Learner | None = None
+        """The ``[learn]`` mode (:meth:`attach_learner`), fed raw rates and estimates."""
         self.rate_tap: RateTap | None = None
         """Called with (receive_time_s, x, y, z) of every corrected rate published or not
         (the consistency check of several IMUs, :mod:`gyrotherm.daemon._consistency`)."""
@@ -183,6 +186,12 @@ class Pipeline(TimeWindow):
         self._compensation.set_calibration(calibration)
         self._max_jump_s = max(self._max_time_jump_s, self._estimator.config.stale_after_s)
         self._refresh_bias(step=False)
+
+    def attach_learner(self, learner: Learner) -> None:
+        """Feed ``learner`` (:mod:`gyrotherm.daemon._learner`): every raw rate, every new
+        estimate, every power-on; its progress goes on the state message."""
+        self.learn = learner
+        self._compensation.power_on_listener = learner.power_on
 
     @property
     def decoder(self) -> FrameDecoder:
@@ -277,6 +286,9 @@ class Pipeline(TimeWindow):
             self._last_counter = s.counter
         b0, b1, b2 = self._bias
         x, y, z = s.rate_x_dps, s.rate_y_dps, s.rate_z_dps
+        learn = self.learn
+        if learn is not None:
+            learn.on_rate(x, y, z)
         if self._zeroing:
             zero = self._compensation.zero
             assert zero is not None
@@ -356,6 +368,9 @@ class Pipeline(TimeWindow):
         self._temperature_rx_s = receive_time_s
         self._temperature_dropping = False
         self.last_estimate = self._estimator.update(t, s.temperature_c)  # one per slot
+        if self.learn is not None:  # may swap in an adopted calibration, between frames
+            self.learn.on_estimate(self.last_estimate, self._compensation.power_on_s,
+                                   not s.status)
         self._last_temperature_s = t
         self._sensor_status = s.status or 0
         self._refresh_bias(step=True)
@@ -415,7 +430,7 @@ class Pipeline(TimeWindow):
             est.temperature_c if est else nan, est.temperature_std_c if est else nan,
             est.delta_t_c if est else nan, est.delta_t_std_c if est else nan,
             self._bias, self._flags, self._compensation.axis_effects(),
-            self._compensation.zero_state())
+            self._compensation.zero_state(), None if self.learn is None else self.learn.progress)
         try:
             routed = self._sink.put_state(encode_state(msg))
         except PublishError:

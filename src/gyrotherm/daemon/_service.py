@@ -356,6 +356,7 @@ class Daemon:
         for ch in self.channels:
             assert ch.pipeline is not None
             ch.save_effects(ch.pipeline)
+            ch.tend_learning(now)
         if now - self._last_trim >= TRIM_PERIOD_S:
             self._last_trim = now
             release_free_heap()
@@ -403,6 +404,8 @@ class Daemon:
             dropped = sum(c.drops.values())
             name = f"{ch.sensor}: " if self._multi else ""
             refused = "; calibration refused" if ch.calibration_error else ""
+            if ch.learner is not None:
+                refused += f"; {ch.learner.progress.status}"
             parts.append(f"{name}{c.frames_received} frames, {c.frames_published} published, "
                          f"{dropped} dropped; calibration {ch.calibration_id or 'none'}{refused}; "
                          f"flags {p.flags!r}")

@@ -20,6 +20,7 @@ are shared, and each ``[[imu]]`` table names one IMU::
     dbc = "imu0.dbc"                                  # optional: overrides [can] dbc
     signals = { rate_frame_id = 0x120, temperature_frame_id = 0x121 }
                          # optional: keys over [can.signals] (or the shipped map)
+    learn = { enabled = false }                       # optional: keys over [learn]
     listen = ["tcp/127.0.0.1:7448"]                   # optional: [zenoh] listen when this
                                                       # IMU runs alone (run --imu; ignored
                                                       # when one process runs them all)
@@ -57,7 +58,7 @@ from gyrotherm.codecs._canmap import resolve_layout
 from gyrotherm.daemon._config import DaemonConfig, parse_config
 
 IMU_KEYS = frozenset({"sensor", "calibration", "device_id", "device_mismatch", "dbc",
-                      "signals", "listen"})
+                      "signals", "listen", "learn"})
 PER_IMU_TOP_KEYS = ("sensor", "calibration", "device_id", "device_mismatch")
 RESERVED_SENSORS = frozenset({"consistency"})
 
@@ -138,6 +139,12 @@ def _imu_doc(base: dict[str, Any], imu: dict[str, Any], *, alone: bool) -> dict[
         shared = can.get("signals") or dataclasses.asdict(SignalMap.default())
         can["signals"] = {**shared, **imu["signals"]}
     doc["can"] = can
+    if "learn" in imu:  # this IMU's keys over the shared [learn] table
+        if not isinstance(imu["learn"], dict):
+            raise ConfigError(f"learn must be a table, got {imu['learn']!r}")
+        shared_learn = base.get("learn", {})
+        doc["learn"] = {**(shared_learn if isinstance(shared_learn, dict) else {}),
+                        **imu["learn"]}
     if alone and "listen" in imu:
         zen = base.get("zenoh", {})
         doc["zenoh"] = {**(zen if isinstance(zen, dict) else {}), "listen": imu["listen"]}
