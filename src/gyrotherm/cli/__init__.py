@@ -31,7 +31,16 @@ def build_parser(*, run_only: bool = False) -> argparse.ArgumentParser:
     if run_only:
         _run.register(sub)
         return _conventions.apply(parser)
-    from gyrotherm.cli import _demo, _diagnose, _export, _fleet, _import, _learn, _offline
+    from gyrotherm.cli import (
+        _demo,
+        _diagnose,
+        _export,
+        _fleet,
+        _import,
+        _learn,
+        _learnstatus,
+        _offline,
+    )
 
     _offline.register(sub)
     _run.register(sub)
@@ -41,6 +50,7 @@ def build_parser(*, run_only: bool = False) -> argparse.ArgumentParser:
     _export.register(sub)
     _fleet.register(sub)
     _learn.register(sub)
+    _learnstatus.register(sub)
     sub.add_parser("listen", help="live view of a sensor's Zenoh stream (see: listen --help)")
     sub.add_parser("record", help="record to MCAP (ROS 2 Imu) / serve Foxglove / "
                    "publish over rmw_zenoh (record --help)")
@@ -60,6 +70,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         return record_main(args_list[quiet + 1:] + (["-q"] if quiet else []),
                            formatter_class=_conventions.DefaultsFormatter)
+    args_list = _learn_status_alias(args_list)
     if _is_run(args_list):
         _run.preload()  # the daemon's dependencies, first and near the bottom of the stack
     args = parse_args(args_list)
@@ -70,6 +81,17 @@ def parse_args(args_list: Sequence[str]) -> argparse.Namespace:
     """Parse a command line as :func:`main` does: ``gyrotherm [-q] [--debug] run ...``
     with the ``run`` parser alone, anything else with every subcommand's."""
     return build_parser(run_only=_is_run(args_list)).parse_args(args_list)
+
+
+def _learn_status_alias(args_list: list[str]) -> list[str]:
+    """``gyrotherm [flags] learn status ...`` is ``learn-status ...`` (``learn`` itself
+    takes logs: a log named ``status`` is given as ``./status``)."""
+    i = 0
+    while i < len(args_list) and args_list[i] in _GLOBAL_FLAGS:
+        i += 1
+    if args_list[i:i + 2] == ["learn", "status"]:
+        return [*args_list[:i], "learn-status", *args_list[i + 2:]]
+    return args_list
 
 
 def _is_run(args_list: Sequence[str]) -> bool:

@@ -7,7 +7,9 @@ One line per update, at most ``--max-hz`` (default 10) lines a second::
 
 (``raw``/``corr``: raw and corrected rate per axis x y z, °/s; ``T``/``dT`` from the
 latest state message, with ``zero pending|done[x y z]|failed`` when the daemon runs a
-boot-time zero (its offsets, °/s, are part of the correction); ``gaps`` = gap count /
+boot-time zero (its offsets, °/s, are part of the correction), and ``learn[status; used
+N left out reason=count; T lo..hi C; held-out learnt vs in use dps; collecting]`` when it
+runs ``[learn]``; ``gaps`` = gap count /
 missing messages on the rate stream; latency as :class:`gyrotherm.client.Subscriber`
 measures it.) It exits after ``--count`` rate messages or ``--timeout-s`` seconds,
 printing per-stream totals.
@@ -34,6 +36,7 @@ from gyrotherm.client._stats import LatencyStats, StreamStats
 from gyrotherm.client._subscriber import Subscriber
 from gyrotherm.codecs._wire import (
     HealthMessage,
+    LearnProgress,
     RateMessage,
     StateMessage,
     StatusFlags,
@@ -98,15 +101,29 @@ def format_line(
     if state is not None:
         parts.append(f"T {state.temperature_c:.2f} C  dT {state.delta_t_c:+.3f} C")
         z = state.zero
-        if z is not None:
+        if z is not None and not (z.status == ZeroStatus.OFF and state.learn is not None):
             done = z.status == ZeroStatus.DONE
             parts.append(f"zero {z.status_name}" + (f"[{_vec(z.offset_dps)}]" if done else ""))
+        if state.learn is not None:
+            parts.append(learn_text(state.learn))
     flags = rate.flags if rate is not None else (state.flags if state else StatusFlags.NONE)
     lat = rate_stats.latency
     parts.append(f"flags={_flags_text(flags)}")
     parts.append(f"gaps={rate_stats.gaps}/{rate_stats.missing}")
     parts.append(f"lat p50={_ms(lat.p50_s)} p99={_ms(lat.p99_s)} ms")
     return "  ".join(parts)
+
+
+def learn_text(p: LearnProgress) -> str:
+    """The ``[learn]`` mode's progress: status, warm-ups, coverage, held-out errors."""
+    out = f"learn[{p.status}; used {p.warmups_used}"
+    if p.rejected:
+        out += " left out " + ",".join(f"{k}={v}" for k, v in sorted(p.rejected.items()))
+    if math.isfinite(p.t_min_c):
+        out += f"; T {p.t_min_c:.1f}..{p.t_max_c:.1f} C"
+    if math.isfinite(p.candidate_rms_dps):
+        out += f"; held-out {p.candidate_rms_dps:.4f} vs {p.current_rms_dps:.4f} dps"
+    return out + ("; collecting]" if p.collecting else "]")
 
 
 def _summary_line(name: str, s: StreamStats) -> str:

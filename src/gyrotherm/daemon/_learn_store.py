@@ -12,6 +12,7 @@ The **learning state** (schema ``gyrotherm.learn-state`` version 1)::
      "rejected": {"motion": 2, "too_short": 1},          # warm-ups left out, by reason
      "decision": {…} | null,                              # the latest Decision.to_dict()
      "adopted": {"time_s": 1.7e9, "calibration_id": "…"} | null,
+     "config": {the [learn] settings} | null,
      "learn": {LearnState.to_dict(): the warm-ups' sufficient statistics}}
 
 The **learnt calibration** is an ordinary calibration file (version 1, paper model) whose
@@ -123,13 +124,16 @@ class LearnRecord:
     rejected: dict[str, int] = field(default_factory=dict)
     decision: dict[str, Any] | None = None
     adopted: dict[str, Any] | None = None
+    config: dict[str, Any] | None = None
+    """The ``[learn]`` settings it was written with (for ``gyrotherm learn status``)."""
 
     def to_dict(self) -> dict[str, Any]:
         return {"schema": SCHEMA, "version": VERSION, "vehicle": self.vehicle,
                 "sensor": self.sensor, "power_ons": self.power_ons,
                 "last_time_s": None if math.isnan(self.last_time_s) else self.last_time_s,
                 "rejected": dict(self.rejected), "decision": self.decision,
-                "adopted": self.adopted, "learn": self.learn.to_dict()}
+                "adopted": self.adopted, "config": self.config,
+                "learn": self.learn.to_dict()}
 
 
 def _jsonable(doc: Any) -> Any:
@@ -180,7 +184,7 @@ def load_record(path: Path, *, vehicle: str, sensor: str,
             for v in rejected.values())):
         raise bad("rejected", f"expected counts by reason among {list(REASONS)}, got "
                   f"{rejected!r:.80}")
-    for key in ("decision", "adopted"):
+    for key in ("decision", "adopted", "config"):
         if doc.get(key) is not None and not isinstance(doc.get(key), dict):
             raise bad(key, f"expected an object or null, got {doc.get(key)!r:.40}")
     adopted = doc.get("adopted")
@@ -192,7 +196,7 @@ def load_record(path: Path, *, vehicle: str, sensor: str,
         raise bad("learn.axes", f"{list(learn.axes)}, not this IMU's {list(axes)}")
     return LearnRecord(vehicle, sensor, learn, power_ons,
                        math.nan if last is None else float(last), dict(rejected),
-                       doc.get("decision"), adopted)
+                       doc.get("decision"), adopted, doc.get("config"))
 
 
 def calibration_text(cal: Calibration) -> tuple[str, str]:

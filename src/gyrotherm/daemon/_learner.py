@@ -377,6 +377,7 @@ class Learner:
         self._last_left_out = reason
 
     def _save(self) -> None:
+        self.record.config = self.config.to_dict()
         try:
             store.save_record(self.state_path, self.record)
         except (OSError, ValueError) as exc:  # never stops the daemon; the file stays
@@ -395,33 +396,38 @@ class Learner:
             self._future = self._pool.submit(job.run)
 
     def _progress(self) -> LearnProgress:
-        cfg, ws = self.config, self.record.learn.warmups
-        need = max(cfg.min_warmups - len(ws), 0)
-        span = max(w.start_c for w in ws) - min(w.start_c for w in ws) if ws else 0.0
-        t_min = min((w.t_range_c[0] for w in ws), default=math.nan)
-        t_max = max((w.t_range_c[1] for w in ws), default=math.nan)
-        d = self.record.decision or {}
-        cand = _largest(d.get("candidate_heldout_rms_dps"))
-        cur = _largest(d.get("current_heldout_rms_dps"))
-        adopted = self.record.adopted if self.adopted else None
-        if adopted is not None:
-            status = (f"adopted at {_utc(float(adopted['time_s']))} "
-                      f"({adopted['calibration_id']}); learning goes on")
-        elif need:
-            status = f"learning: need {need} more warm-up{'s' if need > 1 else ''} at rest"
-        elif span < cfg.min_span_c:
-            status = f"learning: span {span:.1f} °C < {cfg.min_span_c:g} °C"
-        elif d.get("reasons"):
-            status = f"learning: {d['reasons'][-1]}"
-        else:
-            status = "learning: validating"
-        if self._last_left_out:
-            status += (f"; last power-on left out: {self._last_left_out} "
-                       f"({self.record.rejected.get(self._last_left_out, 0)} so far)")
-        return LearnProgress(self._acc is not None,
-                             math.nan if adopted is None else float(adopted["time_s"]),
-                             status, len(ws), dict(self.record.rejected), t_min, t_max,
-                             cand, cur, need)
+        return progress(self.record, self.config, adopted=self.adopted,
+                        collecting=self._acc is not None, last_left_out=self._last_left_out)
+
+
+def progress(record: store.LearnRecord, config: LearnConfig, *, adopted: bool,
+             collecting: bool = False, last_left_out: str = "") -> LearnProgress:
+    """The state message's ``learn`` (and ``gyrotherm learn status``) from a record."""
+    ws = record.learn.warmups
+    need = max(config.min_warmups - len(ws), 0)
+    span = max(w.start_c for w in ws) - min(w.start_c for w in ws) if ws else 0.0
+    t_min = min((w.t_range_c[0] for w in ws), default=math.nan)
+    t_max = max((w.t_range_c[1] for w in ws), default=math.nan)
+    d = record.decision or {}
+    cand = _largest(d.get("candidate_heldout_rms_dps"))
+    cur = _largest(d.get("current_heldout_rms_dps"))
+    took = record.adopted if adopted else None
+    if took is not None:
+        status = (f"adopted at {_utc(float(took['time_s']))} "
+                  f"({took['calibration_id']}); learning goes on")
+    elif need:
+        status = f"learning: need {need} more warm-up{'s' if need > 1 else ''} at rest"
+    elif span < config.min_span_c:
+        status = f"learning: span {span:.1f} °C < {config.min_span_c:g} °C"
+    elif d.get("reasons"):
+        status = f"learning: {d['reasons'][-1]}"
+    else:
+        status = "learning: validating"
+    if last_left_out:
+        status += (f"; last power-on left out: {last_left_out} "
+                   f"({record.rejected.get(last_left_out, 0)} so far)")
+    return LearnProgress(collecting, math.nan if took is None else float(took["time_s"]),
+                         status, len(ws), dict(record.rejected), t_min, t_max, cand, cur, need)
 
 
 def _largest(per_axis: Any) -> float:
@@ -472,4 +478,4 @@ class _Job:
         return _Outcome(d, calibration=cal, calibration_id=cid, time_s=now)
 
 
-__all__ = ["SAVE_PERIOD_S", "Learner"]
+__all__ = ["SAVE_PERIOD_S", "Learner", "progress"]
