@@ -81,7 +81,8 @@ recording another device is refused at start and on reload, or only logged with
 ``[learn]`` (default: absent, no learning) learns a paper-model calibration from
 the warm-ups at rest after each power-on and adopts it only when held-out warm-ups
 show it better (:mod:`gyrotherm.daemon._learner`, docs/operations.md "Learning a
-calibration on the vehicle"); it needs ``state_dir``.
+calibration on the vehicle"); it needs ``state_dir`` and ``[zero]`` (the learnt level
+is not validated: the boot-time zero measures each power-on's).
 
 Errors are :class:`gyrotherm.ConfigError` naming the file and the key.
 """
@@ -297,6 +298,12 @@ def parse_config(data: dict[str, Any], *, source: str = "<memory>",
     if learn is not None and state_dir is None:
         raise ConfigError(f"{source}: [learn] needs state_dir (the learnt statistics and "
                           "the adopted calibration are kept there)")
+    if learn is not None and zero is None:
+        raise ConfigError(f"{source}: [learn] needs [zero]: learning validates the shape of "
+                          "the bias within each warm-up, its level is only the mean of the "
+                          "power-ons' switch-on offsets; the boot-time zero removes each "
+                          "power-on's own (without it a learnt calibration can be worse than "
+                          "none)")
     return DaemonConfig(
         vehicle=vehicle,
         sensor=sensor,
