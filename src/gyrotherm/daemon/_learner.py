@@ -166,13 +166,17 @@ class Learner:
         if learnt is not None:
             use, use_id = learnt
             self.adopted = True
+            took = use.provenance.get("adopted_time_s")
+            if (self.record.adopted or {}).get("calibration_id") != use_id:  # the file rules
+                self.record.adopted = {"time_s": float(took) if isinstance(
+                    took, int | float) else math.nan, "calibration_id": use_id}
             log.info("%s: learnt calibration %s in use (%s)", self.sensor, use_id,
                      self.learnt_path)
         self.set_current(use, use_id)
         if self.record.learn.warmups:
-            self._submit()  # the validation figures of what is known
+            self._submit()  # the validation figures of what is known (may adopt, inline)
         self.progress = self._progress()
-        return use, use_id
+        return self.current, self.current_id
 
     def set_current(self, calibration: Calibration | None, calibration_id: str) -> None:
         """The calibration in use (what a candidate must beat)."""
@@ -413,7 +417,8 @@ def progress(record: store.LearnRecord, config: LearnConfig, *, adopted: bool,
     cur = _largest(d.get("current_heldout_rms_dps"))
     took = record.adopted if adopted else None
     if took is not None:
-        status = (f"adopted at {_utc(float(took['time_s']))} "
+        when = float(took["time_s"])
+        status = (f"adopted at {_utc(when) if math.isfinite(when) else 'an unknown time'} "
                   f"({took['calibration_id']}); learning goes on")
     elif need:
         status = f"learning: need {need} more warm-up{'s' if need > 1 else ''} at rest"
