@@ -274,3 +274,26 @@ def test_two_imus_one_broken_the_good_one_learns_alone_as_it_would_alone(
         np.testing.assert_array_equal(cal_shared.coefficients[a], cal_alone.coefficients[a])
     assert len(cal_shared.provenance["power_ons"]) == 5
     assert b0.learner.record.rejected == {}
+
+
+# --- the status command on a hostile directory --------------------------------------------
+
+
+def test_learn_status_reports_a_state_dir_with_a_refused_file(
+        adopted: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from gyrotherm.cli import main
+
+    d = _copy(adopted, tmp_path / "s")
+    assert main(["learn", "status", "--state-dir", str(d)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("car/imu0: adopted at ") and "warm-ups used 5" in out
+    (d / LEARNT).write_text(_learnt_for(adopted, "imu1").decode())
+    assert main(["learn", "status", "--state-dir", str(d), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    (imu,) = doc["imus"]
+    assert imu["learnt_calibration"] is None and "learnt_for" in imu["learnt_refused"]
+    assert imu["warmups_used"] == 5 and not imu["status"].startswith("adopted")
+    (d / STATE).write_text("{}")
+    assert main(["learn", "status", "--state-dir", str(d)]) == 2
+    assert "cannot be read" in capsys.readouterr().out
+    assert main(["learn", "status", "--state-dir", str(tmp_path / "s" / "..")]) == 1
