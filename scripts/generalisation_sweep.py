@@ -1,6 +1,7 @@
 """Does the diagnosis generalise beyond the catalogue's exact forms? A seeded sweep.
 
-    .venv/bin/python scripts/generalisation_sweep.py [--seeds dev|eval] [--quick] [--json OUT]
+    .venv/bin/python scripts/generalisation_sweep.py [--seeds dev|eval|shapes-dev|shapes-eval]
+        [--quick] [--conditions I ...] [--cases NAME ...] [--json OUT]
 
 Per case (what is injected) × condition (sample rate, temperature readout, number
 of runs) × seed, one device of the independent generator
@@ -56,6 +57,7 @@ from typing import Any
 from gyrotherm.analysis import SynthConfig, diagnose
 from gyrotherm.analysis._intervals import bootstrap_quantile, wilson
 from gyrotherm.analysis._synth_variants import VariantTruth, variant_runs
+from gyrotherm.analysis._unexplained import Unexplained
 
 DEV_SEEDS = (1, 2, 3, 4, 5, 6, 101, 102, 103, 104, 105)
 """Development seeds: 1, 2 the original sweep's, 3–6 seen since (the issue-19 review
@@ -94,6 +96,11 @@ class Case:
     """Expected names: catalogued effects, or ``unexplained:<variable>``."""
     allowed_unexplained: tuple[str, ...] = ()
     """Variables whose unexplained finding also counts as finding the expected names."""
+    proxies: tuple[str, ...] = ()
+    """Catalogued names that count as finding an expected ``unexplained:<variable>`` when
+    the finding carries the note that the shape differs (``Finding.shape``)."""
+    bracket: float | None = None
+    """An expected unexplained finding's ``where`` must bracket this value."""
 
 
 @dataclass(frozen=True)
@@ -114,8 +121,20 @@ CASES = (
     Case("logistic_warmup", shapes={"logistic_warmup": {}}, expected=("warmup",),
          allowed_unexplained=("time_since_power_on_s",)),
     Case("bias_step", shapes={"bias_step": {"at_c": STEP_AT_C}},
-         expected=("unexplained:temperature_c",)),
+         expected=("unexplained:temperature_c",), bracket=STEP_AT_C),
 )
+SHAPE_CASES = (
+    Case("none"),
+    Case("periodic_t", shapes={"periodic_t": {}}, expected=("unexplained:temperature_c",),
+         proxies=("cubic",)),
+    Case("saturating_dt", shapes={"saturating_dt": {}}, expected=("unexplained:delta_t_c",),
+         proxies=("gradient_quadratic",)),
+    Case("abs_dt", shapes={"abs_dt": {}}, expected=("unexplained:delta_t_c",),
+         proxies=("gradient_quadratic",)),
+    Case("rate_hysteresis", shapes={"rate_hysteresis": {}}, expected=("hysteresis",)),
+)
+"""Issue 19 item 2's shapes, run on SHAPE_DEV_SEEDS / SHAPE_EVAL_SEEDS (``--seeds
+shapes-dev|shapes-eval``), with nothing injected on the same devices as a control."""
 CONDITIONS = (
     Condition("10 Hz, 0.125 °C / 1.28 s, 4 runs", 10.0, 0.125, 1.28, 4),
     Condition("200 Hz, 0.0625 °C / 0.1 s, 4 runs", 200.0, 0.0625, 0.1, 4),
@@ -131,8 +150,9 @@ def _truth_param(case: Case, truth: VariantTruth, name: str) -> float | None:
             return truth.base.die_tau_s
         return float(truth.base.effects[name][CHECKED[name]])
     s = truth.shapes
-    if name == "hysteresis" and "wide_hysteresis" in s:
-        return s["wide_hysteresis"]["amplitude_dps"]
+    for hyst in ("wide_hysteresis", "rate_hysteresis"):
+        if name == "hysteresis" and hyst in s:
+            return s[hyst]["amplitude_dps"]
     if name == "warmup" and "two_exp_warmup" in s:
         return s["two_exp_warmup"]["amplitude_1_dps"] + s["two_exp_warmup"]["amplitude_2_dps"]
     if name == "warmup" and "logistic_warmup" in s:
@@ -152,13 +172,22 @@ def run_case(case: Case, cond: Condition, seed: int) -> dict[str, Any]:
     reported = {f.effect: dict(f.params) for f in d.findings}
     not_resolvable = sorted(v.effect for v in d.not_resolvable)
     names = set(reported)
+    as_proxy = []
+    for f in d.findings:  # the nearest catalogued effect, with its shape note
+        if f.effect in case.proxies and f.shape:
+            target = next(e for e in case.expected if e.startswith("unexplained:"))
+            names.discard(f.effect)
+            names.add(target)
+            as_proxy.append(f.effect)
     allowed = []
+    coverage = []
     for u in d.unexplained:
         lo, hi = u.where
-        if u.variable == "temperature_c" and "unexplained:temperature_c" in case.expected:
-            if lo <= STEP_AT_C <= hi:
-                names.add("unexplained:temperature_c")
-                continue
+        key = f"unexplained:{u.variable}"
+        if key in case.expected and (case.bracket is None or lo <= case.bracket <= hi):
+            names.add(key)
+            coverage.append(where_coverage(case, truth, u))
+            continue
         if u.variable in case.allowed_unexplained:
             allowed.append(u.variable)
             continue
@@ -178,13 +207,33 @@ def run_case(case: Case, cond: Condition, seed: int) -> dict[str, Any]:
         "case": case.name, "condition": cond.name, "seed": seed,
         "found": sorted(expected & names), "missed": sorted(expected - names),
         "false_alarms": sorted(names - expected), "allowed_unexplained": allowed,
-        "found_as_unexplained": as_unexplained,
+        "found_as_unexplained": as_unexplained, "found_as_proxy": as_proxy,
+        "named": [{"name": f.effect + (" (shape differs)" if f.shape else ""),
+                   "gain": f.gain, "shape": f.shape} for f in d.findings]
+        + [{"name": f"unexplained:{u.variable}", "gain": u.gain, "where": list(u.where)}
+           for u in d.unexplained],
+        "where_coverage": coverage,
         "not_resolvable": not_resolvable,
         "missed_not_resolvable": sorted((expected - names) & set(not_resolvable)),
         "parameter_errors": errors,
         "unresolved_lag": any("thermal_lag not reported" in n for n in d.notes),
         "gain": d.gain, "diagnosis_s": elapsed,
     }
+
+
+def where_coverage(case: Case, truth: VariantTruth, u: Unexplained) -> float:
+    """Share of the injected structure's support within the data's range (the knots'
+    0.5–99.5 % span) that ``u.where`` covers: a bias step's is T₀ ± 2w, a periodic
+    or ΔT shape's is the whole range."""
+    lo, hi = u.knots[0], u.knots[-1]
+    if "bias_step" in truth.shapes:
+        p = truth.shapes["bias_step"]
+        lo = max(lo, p["at_c"] - 2.0 * p["width_c"])
+        hi = min(hi, p["at_c"] + 2.0 * p["width_c"])
+    if hi <= lo:
+        return 1.0
+    covered = min(hi, u.where[1]) - max(lo, u.where[0])
+    return max(0.0, covered) / (hi - lo)
 
 
 def _pct(x: float) -> str:
@@ -223,6 +272,30 @@ def _summary(rows: Sequence[dict[str, Any]], key: str, labels: Sequence[str]) ->
     return out
 
 
+def _names(rows: Sequence[dict[str, Any]], labels: Sequence[str]) -> list[str]:
+    """Per case: what the diagnosis names (with held-out gains) and how much of the
+    injected structure's support the unexplained finding's ``where`` covers."""
+    out = ["| case | diagnoses | names reported (count; median held-out gain) "
+           "| as nearest catalogued + shape note | `where` covers the support: "
+           "≥ 95 % / found (median, min) |", "|---|---|---|---|---|"]
+    for label in labels:
+        sel = [r for r in rows if r["case"] == label]
+        if not sel:
+            continue
+        named: dict[str, list[float]] = {}
+        for r in sel:
+            for n in r["named"]:
+                named.setdefault(n["name"], []).append(n["gain"])
+        text = ", ".join(f"{k} {len(v)}; ×{sorted(v)[len(v) // 2]:.2f}"
+                         for k, v in sorted(named.items())) or "—"
+        cov = [c for r in sel for c in r["where_coverage"]]
+        cov_text = (f"{sum(c >= 0.95 for c in cov)}/{len(cov)} "
+                    f"({_pct(sorted(cov)[len(cov) // 2])}, {_pct(min(cov))})" if cov else "—")
+        proxy = sum(len(r["found_as_proxy"]) for r in sel)
+        out.append(f"| {label} | {len(sel)} | {text} | {proxy} | {cov_text} |")
+    return out
+
+
 def _totals(rows: Sequence[dict[str, Any]]) -> list[str]:
     null = [r for r in rows if r["case"] == "none"]
     found = sum(len(r["found"]) for r in rows)
@@ -247,9 +320,13 @@ def commit() -> str:
         return "unknown"
 
 
-def sweep(seeds: Sequence[int], *, quick: bool = False,
-          conditions: Sequence[int] | None = None) -> list[dict[str, Any]]:
+def sweep(seeds: Sequence[int], *, quick: bool = False, conditions: Sequence[int] | None = None,
+          only: Sequence[str] | None = None) -> list[dict[str, Any]]:
     cases = [c for c in CASES if c.name in QUICK_CASES] if quick else list(CASES)
+    if set(seeds) & {*SHAPE_DEV_SEEDS, *SHAPE_EVAL_SEEDS}:
+        cases = list(SHAPE_CASES)
+    if only:
+        cases = [c for c in (*CASES, *SHAPE_CASES[1:]) if c.name in only]
     conds = CONDITIONS[::3] if quick else CONDITIONS
     if conditions is not None:
         conds = tuple(CONDITIONS[i] for i in conditions)
@@ -273,19 +350,25 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="5 cases × 2 conditions instead of 11 × 4")
     p.add_argument("--conditions", type=int, nargs="+", metavar="I",
                    help="only these conditions (indices into CONDITIONS)")
+    p.add_argument("--cases", nargs="+", metavar="NAME", help="only these cases")
     p.add_argument("--json", metavar="OUT", help="also write the rows as JSON here")
     args = p.parse_args(argv)
     start = time.perf_counter()
-    rows = sweep(SEED_SETS[args.seeds], quick=args.quick, conditions=args.conditions)
+    rows = sweep(SEED_SETS[args.seeds], quick=args.quick, conditions=args.conditions,
+                 only=args.cases)
     elapsed = time.perf_counter() - start
     cmd = f"scripts/generalisation_sweep.py --seeds {args.seeds}" + (
         " --quick" if args.quick else "") + (
-        " --conditions " + " ".join(map(str, args.conditions)) if args.conditions else "")
+        " --conditions " + " ".join(map(str, args.conditions)) if args.conditions else "") + (
+        " --cases " + " ".join(args.cases) if args.cases else "")
     print(f"`.venv/bin/python {cmd}` at commit {commit()}, {args.seeds} seeds "
           f"{', '.join(str(s) for s in sorted({r['seed'] for r in rows}))}, "
           f"{DURATION_S:g}-s runs, {len(rows)} diagnoses, {elapsed:.0f} s")
     print()
-    print("\n".join(_summary(rows, "case", [c.name for c in CASES])))
+    labels = list(dict.fromkeys(r["case"] for r in rows))
+    print("\n".join(_summary(rows, "case", labels)))
+    print()
+    print("\n".join(_names(rows, labels)))
     print()
     print("\n".join(_summary(rows, "condition", [c.name for c in CONDITIONS])))
     print()

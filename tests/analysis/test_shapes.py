@@ -10,11 +10,23 @@ developing (tests use SHAPE_DEV_SEEDS only)."""
 from __future__ import annotations
 
 import importlib.util
+import math
 import sys
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
 import pytest
+
+from gyrotherm._errors import ConfigError
+from gyrotherm.analysis import Diagnosis, SynthConfig, diagnose
+from gyrotherm.analysis._synth_variants import (
+    VariantTruth,
+    shape_bias,
+    stop_operator,
+    variant_runs,
+)
+from gyrotherm.analysis._where import segments, support_span
 
 SHAPE_DEV_SEEDS = (31, 32, 33, 34, 35, 36)
 SHAPE_EVAL_SEEDS = (301, 302, 303, 304, 305)
@@ -37,3 +49,137 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
     assert sweep.SHAPE_EVAL_SEEDS == SHAPE_EVAL_SEEDS
     used = {*sweep.DEV_SEEDS, *sweep.EVAL_SEEDS, *SHAPE_DEV_SEEDS}
     assert not set(SHAPE_EVAL_SEEDS) & used
+
+
+def test_periodic_t_by_hand() -> None:
+    # A·sin(2π·T/P + φ): T = 5 °C, P = 20 °C, φ = 0 → A·sin(π/2) = A; T = 15 → −A;
+    # T = 0, φ = π/6 → A/2
+    p = {"amplitude_dps": 0.03, "period_c": 20.0, "phase_rad": 0.0}
+    t = np.array([0.0, 1.0, 2.0])
+    got = shape_bias("periodic_t", p, t, np.array([5.0, 15.0, 10.0]))
+    assert got == pytest.approx([0.03, -0.03, 0.0], abs=1e-15)
+    half = shape_bias("periodic_t", {**p, "phase_rad": math.pi / 6}, t[:1], np.array([0.0]))
+    assert half == pytest.approx([0.015])
+
+
+def test_saturating_and_abs_dt_by_hand() -> None:
+    t = np.array([0.0, 1.0, 2.0, 3.0])
+    die = np.full(4, 25.0)
+    g = np.array([-3.0, -1.5, 0.0, 6.0])
+    sat = shape_bias("saturating_dt", {"amplitude_dps": 0.05, "scale_c": 1.5}, t, die, g)
+    # tanh(−2) = −0.9640276, tanh(−1) = −0.7615942, tanh(4) = 0.9993293
+    assert sat == pytest.approx([-0.04820138, -0.03807971, 0.0, 0.04996646], abs=1e-8)
+    ab = shape_bias("abs_dt", {"slope_dps_per_c": -0.01}, t, die, g)
+    assert ab == pytest.approx([-0.03, -0.015, 0.0, -0.06])  # same sign both ways
+    with pytest.raises(ConfigError):
+        shape_bias("abs_dt", {"slope_dps_per_c": 0.01}, t, die)
+
+
+def test_stop_operator_with_a_width_per_step() -> None:
+    # steps +1, +1, −1, −1 °C through widths 4, 4, 2, 2: h = 0, .5, 1, 0, −1
+    h = stop_operator(np.array([0.0, 1.0, 2.0, 1.0, 0.0]), np.array([4.0, 4.0, 4.0, 2.0, 2.0]))
+    assert h == pytest.approx([0.0, 0.5, 1.0, 0.0, -1.0])
+
+
+def test_rate_hysteresis_width_grows_with_the_rate() -> None:
+    # a ramp at 0.04 °C/s with w0 = 1 °C, r0 = 0.02 °C/s: w = 1·(1 + 2) = 3 °C, so h
+    # rises by 2/3 per °C and saturates after 1.5 °C (37.5 s); a plain stop operator
+    # of 1 °C saturates after 0.5 °C
+    p = {"amplitude_dps": 0.04, "width_c": 1.0, "rate_c_per_s": 0.02}
+    t = np.arange(0.0, 100.0, 0.5)
+    die = 20.0 + 0.04 * t
+    got = shape_bias("rate_hysteresis", p, t, die)
+    assert got[t == 25.0] == pytest.approx(0.04 * (2.0 / 3.0) * 1.0)  # 1 °C travelled
+    assert got[t == 50.0] == pytest.approx(0.04)
+    wide = shape_bias("wide_hysteresis", {"amplitude_dps": 0.04, "width_c": 1.0}, t, die)
+    assert wide[t == 12.5] == pytest.approx(0.04)
+
+
+@pytest.mark.parametrize("name", ["periodic_t", "saturating_dt", "abs_dt", "rate_hysteresis"])
+def test_new_shapes_reach_truth_and_rate_with_drawn_parameters(name: str) -> None:
+    cfg = SynthConfig(duration_s=1200.0, rate_hz=10.0)
+    plain, _ = variant_runs(cfg, n_runs=1, seed=SHAPE_DEV_SEEDS[0])
+    shaped, truth = variant_runs(cfg, shapes={name: {}}, n_runs=1, seed=SHAPE_DEV_SEEDS[0])
+    again, _ = variant_runs(cfg, shapes={name: {}}, n_runs=1, seed=SHAPE_DEV_SEEDS[0])
+    run = plain[0]
+    added = shape_bias(name, truth.shapes[name], run.time_s, run.extra["true_temperature_c"],
+                       run.extra["true_delta_t_c"])
+    assert np.ptp(added) > 0.005
+    assert shaped[0].true_bias_dps["x"] - run.true_bias_dps["x"] == pytest.approx(added)
+    assert np.array_equal(shaped[0].rates_dps["x"], again[0].rates_dps["x"])  # seeded
+
+
+def test_support_span_takes_every_significant_monotone_run() -> None:
+    knots = np.arange(12.0)
+    # a sine of period 4 knots: monotone runs of 2 intervals, all significant
+    values = np.sin(2 * np.pi * knots / 4.0 + 0.3)
+    cov = np.eye(12) * 1e-6
+    assert support_span(knots, values, cov) == (0.0, 11.0)
+    # a step between knots 5 and 6, flat (noise-free) elsewhere: the step, padded by
+    # one interval each side (the spline's resolution)
+    step = np.where(knots > 5.0, 1.0, 0.0)
+    assert support_span(knots, step, cov) == (4.0, 7.0)
+    # the same with changes within the noise beside it: still the step alone
+    noisy = step + np.array([0, 1, 0, -1, 0, 1, 0, 1, 0, -1, 0, 1]) * 1e-3
+    assert support_span(knots, noisy, cov) == (4.0, 7.0)
+    assert segments(np.array([0.0, 1.0, 1.0, 0.0, -1.0])) == [(0, 2), (2, 4)]
+
+
+CFG = SynthConfig(duration_s=6000.0, rate_hz=10.0)  # the sweep's reference readout
+DEV = SHAPE_DEV_SEEDS[0]
+
+
+def _diagnosed(shape: str, seed: int = DEV, **given: float) -> tuple[Diagnosis, VariantTruth]:
+    runs, truth = variant_runs(CFG, shapes={shape: dict(given)}, n_runs=4, seed=seed)
+    return diagnose(runs, simulate=False), truth
+
+
+@pytest.fixture(scope="module")
+def periodic() -> tuple[Diagnosis, VariantTruth]:
+    return _diagnosed("periodic_t")
+
+
+def test_periodic_bias_is_unexplained_in_temperature_over_all_of_it(
+    periodic: tuple[Diagnosis, VariantTruth],
+) -> None:
+    d, truth = periodic
+    assert d.findings == ()
+    (u,) = d.unexplained
+    assert u.variable == "temperature_c" and u.gain > 1.5
+    # the structure is everywhere in T: `where` is the data's whole range
+    assert u.where == (u.knots[0], u.knots[-1])
+    p = truth.shapes["periodic_t"]
+    assert u.knots[-1] - u.knots[0] > p["period_c"]  # several half-periods inside
+    # the correction follows the injected sine (up to the paper's T, T² terms)
+    t = np.array(u.knots)
+    injected = p["amplitude_dps"] * np.sin(2 * np.pi * t / p["period_c"] + p["phase_rad"])
+    poly = np.vander(t - t.mean(), 3)
+    rest = np.array(u.correction_dps) - poly @ np.linalg.lstsq(poly, u.correction_dps)[0]
+    sine = injected - poly @ np.linalg.lstsq(poly, injected)[0]
+    assert float(np.corrcoef(rest, sine)[0, 1]) > 0.8
+
+
+def test_bias_step_where_holds_its_support_on_a_dev_seed() -> None:
+    d, truth = _diagnosed("bias_step", at_c=30.0)
+    (u,) = d.unexplained
+    p = truth.shapes["bias_step"]
+    low = max(u.knots[0], p["at_c"] - 2 * p["width_c"])
+    high = min(u.knots[-1], p["at_c"] + 2 * p["width_c"])
+    assert u.where[0] <= low and u.where[1] >= high
+    assert u.steepest[0] <= p["at_c"] <= u.steepest[1]
+
+
+def test_saturating_gradient_is_unexplained_in_delta_t() -> None:
+    d, _ = _diagnosed("saturating_dt")
+    assert d.findings == ()
+    (u,) = d.unexplained
+    assert u.variable == "delta_t_c" and u.gain > 1.5
+    assert u.to_dict()["gain"] == u.gain  # reported with its held-out gain
+
+
+def test_rate_dependent_hysteresis_is_named_hysteresis() -> None:
+    d, truth = _diagnosed("rate_hysteresis")
+    (f,) = d.findings
+    assert f.effect == "hysteresis" and f.gain > 1.5
+    true = truth.shapes["rate_hysteresis"]["amplitude_dps"]
+    assert abs(f.params["amplitude_dps"] / true - 1.0) < 0.2

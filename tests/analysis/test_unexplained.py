@@ -51,11 +51,16 @@ def test_bias_step_is_unexplained_on_temperature_where_the_step_is(
     assert [f["effect"] for f in data] == ["unexplained"]
     assert data[0]["params"]["variable"] == "temperature_c"
     low, high = data[0]["params"]["where"]
-    assert low <= STEP_C <= high
-    assert high - low < 15.0  # a place, not the whole range (runs span ≥ 30 °C)
-    assert data[0]["gain"] > 1.1
-    # the correction rises (falls) across `where` as the injected step does
     knots = np.array(u.knots)
+    # `where` holds the step's whole support within the data's range, T0 ± 2w
+    assert low <= max(knots[0], STEP_C - 2 * step["width_c"])
+    assert high >= min(knots[-1], STEP_C + 2 * step["width_c"])
+    # `steepest`, where it changes fastest, is a place, not the whole range
+    low, high = data[0]["params"]["steepest"]
+    assert low <= STEP_C <= high
+    assert high - low < 15.0  # runs span ≥ 30 °C
+    assert data[0]["gain"] > 1.1
+    # the correction rises (falls) across `steepest` as the injected step does
     values = np.array(u.correction_dps)
     change = float(np.interp(high, knots, values) - np.interp(low, knots, values))
     assert np.sign(change) == np.sign(step["amplitude_dps"])

@@ -81,10 +81,16 @@ class Finding:
     evidence: str
     heldout_rms_dps: float
     gain: float
+    shape: str = ""
+    """Non-empty when the data's structure in this effect's variable is not the
+    catalogued form (:mod:`._shape_check`): the note saying how the shape differs."""
 
     def to_dict(self) -> dict[str, Any]:
-        return {"effect": self.effect, "params": dict(self.params), "evidence": self.evidence,
-                "heldout_rms_dps": self.heldout_rms_dps, "gain": self.gain}
+        out = {"effect": self.effect, "params": dict(self.params), "evidence": self.evidence,
+               "heldout_rms_dps": self.heldout_rms_dps, "gain": self.gain}
+        if self.shape:
+            out["shape_differs"] = self.shape
+        return out
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,9 @@
 """How finely the readout lets the diagnosis place an unexplained structure.
 
 An unexplained structure (:mod:`._unexplained`) is a linear spline in one
-variable v, reported with ``where``: the span of v over which it changes
-fastest. The readout sets the smallest span of v the data can show:
+variable v, reported with ``steepest``: the span of v over which it changes
+fastest (``where``, the whole span it reaches over, is wider). The readout
+sets the smallest span of v the data can show:
 
 * **T** (``temperature_c``): one readout LSB q. Between code changes the
   reading says nothing about where T is within the code.
@@ -15,7 +16,7 @@ fastest. The readout sets the smallest span of v the data can show:
   q = 0.125 °C: 0.74 °C) — a readout artefact, not a gradient.
 * **time since power-on**: the hold period (a reading is held that long).
 
-A structure whose ``where`` span is narrower than this is not resolvable at
+A structure whose ``steepest`` span is narrower than this is not resolvable at
 this readout: the variable's own estimate moves by more than the span with a
 single code change, so where the structure lies (and whether it is one) is
 below what the data show. Such a structure is reported as a
@@ -67,9 +68,9 @@ class Resolution:
 
 
 def unresolved(u: Unexplained, resolution: Resolution) -> NotResolvable | None:
-    """The verdict for ``u`` when its ``where`` span is narrower than the readout shows."""
+    """The verdict for ``u`` when its ``steepest`` span is narrower than the readout shows."""
     need = resolution.spans().get(u.variable)
-    lo, hi = u.where
+    lo, hi = u.steepest  # how sharp it is, not how far it reaches (``where``)
     if need is None or hi - lo >= need:
         return None
     reason = (f"a structure in {u.variable} over [{lo:.3g}, {hi:.3g}] (span {hi - lo:.3g}, "

@@ -2,8 +2,8 @@
 
 The diagnosis' catalogue (:mod:`._effects`) has one exact form per effect. To
 see whether it generalises, these shapes differ from those forms on purpose.
-Each is evaluated on the generator's *true* die temperature T_die (°C) and
-time since power-on t (s) at the output samples, added to the rate and to
+Each is evaluated on the generator's *true* die temperature T_die (°C), true
+gradient G (°C) and time since power-on t (s) at the output samples, added to the rate and to
 ``true_bias_dps``, and the rate is re-quantised to the generator's LSB:
 
 * ``wide_hysteresis`` (``amplitude_dps``, ``width_c``): a stop operator,
@@ -19,6 +19,19 @@ time since power-on t (s) at the output samples, added to the rate and to
   in temperature, bias += A·½·(1 + tanh((T_die − T₀)/w)), T₀ = 30 °C by
   default (every generated run crosses it: holds at 15–30 °C, heats to
   ≥ 35 °C, cools to ≤ 20 °C). No catalogued effect has this form.
+* ``periodic_t`` (``amplitude_dps``, ``period_c``, ``phase_rad``): a periodic
+  bias in die temperature, bias += A·sin(2π·T_die/P + φ), P = 15–30 °C (the
+  runs span 30–55 °C: two or more periods).
+* ``saturating_dt`` (``amplitude_dps``, ``scale_c``): bias += A·tanh(G/s),
+  s = 1–2 °C, G the generator's true gradient (``true_delta_t_c``: chamber air
+  + self-heating − case, °C; ramps give a few °C): linear near 0, flat beyond ±2s.
+* ``abs_dt`` (``slope_dps_per_c``): bias += k·|G|, the same sign heating and
+  cooling (the catalogue's gradient² is even too, but ∝ G²).
+* ``rate_hysteresis`` (``amplitude_dps``, ``width_c``, ``rate_c_per_s``): a stop
+  operator whose width grows with the rate of the die temperature,
+  h ← clip(h + 2·ΔT_die/w, −1, 1), w = w₀·(1 + |dT_die/dt|/r₀), h(0) = 0,
+  dT_die/dt by central differences on the 0.5-s grid; bias += A·h. w₀ = 1–3 °C,
+  r₀ = 0.02–0.04 °C/s (ramps 1–3.5 °C/min double or triple the width).
 
 Missing parameters are drawn from ``truth_seed`` (one device per run set).
 :func:`variant_runs` returns the runs and what was injected.
@@ -38,7 +51,8 @@ from gyrotherm.codecs import Run
 
 FloatArray = NDArray[np.float64]
 
-SHAPES = ("wide_hysteresis", "two_exp_warmup", "logistic_warmup", "bias_step")
+SHAPES = ("wide_hysteresis", "two_exp_warmup", "logistic_warmup", "bias_step", "periodic_t",
+          "saturating_dt", "abs_dt", "rate_hysteresis")
 _STEP_S = 0.5
 """Grid (s) on which the stop operator runs before interpolation to the samples."""
 
@@ -77,17 +91,32 @@ def _draw(shapes: Mapping[str, Mapping[str, float]], seed: int) -> dict[str, dic
             p.setdefault("amplitude_dps", sign() * float(rng.uniform(0.03, 0.05)))
             p.setdefault("at_c", 30.0)
             p.setdefault("width_c", float(rng.uniform(1.0, 2.0)))
+        elif name == "periodic_t":
+            p.setdefault("amplitude_dps", sign() * float(rng.uniform(0.02, 0.04)))
+            p.setdefault("period_c", float(rng.uniform(15.0, 30.0)))
+            p.setdefault("phase_rad", float(rng.uniform(0.0, 2.0 * np.pi)))
+        elif name == "saturating_dt":
+            p.setdefault("amplitude_dps", sign() * float(rng.uniform(0.04, 0.07)))
+            p.setdefault("scale_c", float(rng.uniform(1.0, 2.0)))
+        elif name == "abs_dt":
+            p.setdefault("slope_dps_per_c", sign() * float(rng.uniform(0.006, 0.012)))
+        elif name == "rate_hysteresis":
+            p.setdefault("amplitude_dps", sign() * float(rng.uniform(0.03, 0.05)))
+            p.setdefault("width_c", float(rng.uniform(1.0, 3.0)))
+            p.setdefault("rate_c_per_s", float(rng.uniform(0.02, 0.04)))
         out[name] = p
     return out
 
 
-def stop_operator(temperature_c: FloatArray, width_c: float) -> FloatArray:
-    """h ← clip(h + 2·ΔT/w, −1, 1) from h = 0: a branch switches over ``width_c`` °C."""
-    if width_c <= 0:
-        raise ConfigError(f"stop operator: width_c = {width_c!r} must be > 0")
+def stop_operator(temperature_c: FloatArray, width_c: float | FloatArray) -> FloatArray:
+    """h ← clip(h + 2·ΔT/w, −1, 1) from h = 0: a branch switches over ``width_c`` °C
+    (one width, or one per sample: the width in force at that step)."""
+    widths = np.broadcast_to(np.asarray(width_c, dtype=np.float64), np.shape(temperature_c))
+    if np.any(widths <= 0):
+        raise ConfigError(f"stop operator: width_c = {np.min(widths)!r} must be > 0")
     h = np.zeros(len(temperature_c))
     state = 0.0
-    steps = np.diff(temperature_c, prepend=temperature_c[:1]) * (2.0 / width_c)
+    steps = np.diff(temperature_c, prepend=temperature_c[:1]) * (2.0 / widths)
     for i, d in enumerate(steps.tolist()):
         state = min(1.0, max(-1.0, state + d))
         h[i] = state
@@ -95,14 +124,31 @@ def stop_operator(temperature_c: FloatArray, width_c: float) -> FloatArray:
 
 
 def shape_bias(
-    name: str, params: Mapping[str, float], time_s: FloatArray, die_c: FloatArray
+    name: str, params: Mapping[str, float], time_s: FloatArray, die_c: FloatArray,
+    gradient_c: FloatArray | None = None,
 ) -> FloatArray:
-    """Bias (°/s) of off-catalogue shape ``name`` at times ``time_s`` and die temperatures."""
+    """Bias (°/s) of off-catalogue shape ``name`` at times ``time_s``, die temperatures
+    and true gradients ``gradient_c`` (needed by ``saturating_dt`` and ``abs_dt``)."""
     t = np.asarray(time_s, dtype=np.float64)
-    if name == "wide_hysteresis":
+    if name in ("wide_hysteresis", "rate_hysteresis"):
         grid = np.arange(0.0, float(t[-1]) + _STEP_S, _STEP_S)
-        h = stop_operator(np.interp(grid, t, die_c), params["width_c"])
+        die = np.interp(grid, t, die_c)
+        width: float | FloatArray = params["width_c"]
+        if name == "rate_hysteresis":
+            rate = np.abs(np.gradient(die, _STEP_S)) if len(die) > 1 else np.zeros(len(die))
+            width = params["width_c"] * (1.0 + rate / params["rate_c_per_s"])
+        h = stop_operator(die, width)
         return params["amplitude_dps"] * np.interp(t, grid, h)
+    if name == "periodic_t":
+        return np.asarray(params["amplitude_dps"] * np.sin(
+            2.0 * np.pi * np.asarray(die_c) / params["period_c"] + params["phase_rad"]))
+    if name in ("saturating_dt", "abs_dt"):
+        if gradient_c is None:
+            raise ConfigError(f"shape {name!r} needs the true gradient (gradient_c)")
+        g = np.asarray(gradient_c, dtype=np.float64)
+        if name == "abs_dt":
+            return np.asarray(params["slope_dps_per_c"] * np.abs(g))
+        return np.asarray(params["amplitude_dps"] * np.tanh(g / params["scale_c"]))
     if name == "two_exp_warmup":
         return np.asarray(params["amplitude_1_dps"] * np.exp(-t / params["tau_1_s"])
                           + params["amplitude_2_dps"] * np.exp(-t / params["tau_2_s"]))
@@ -117,9 +163,10 @@ def shape_bias(
 
 def _with_shapes(run: Run, shapes: Mapping[str, Mapping[str, float]], lsb_dps: float) -> Run:
     die = run.extra["true_temperature_c"]
+    grad = run.extra["true_delta_t_c"]
     extra = np.zeros(len(run))
     for name, params in shapes.items():
-        extra += shape_bias(name, params, run.time_s, die)
+        extra += shape_bias(name, params, run.time_s, die, grad)
     rate = run.rates_dps["x"] + extra
     if lsb_dps > 0:
         rate = np.round(rate / lsb_dps) * lsb_dps

@@ -18,12 +18,15 @@ the correction present: one that no longer earns its place (the same
 criteria) was only standing in for the unexplained structure (a cubic
 bending towards a step) and is dropped.
 
-``where`` = [low, high]: the span of v over which the correction changes
-fastest — the knot intervals, contiguous with the steepest one, whose slope
-|Δc/Δv| is at least half the steepest, of the spline fitted to the final
-model's residuals (two-stage, so that the paper's T and T² terms, collinear
-with the spline, do not share its shape). ``gain`` = held-out RMS of the
-model without the correction / with it.
+The spline reported is fitted to the final model's residuals (two-stage, so
+that the paper's T and T² terms, collinear with the spline, do not share its
+shape). ``where`` = [low, high]: the whole span of v over which it changes
+significantly (:mod:`._where`: every interval whose slope is ≥ 3 standard
+errors and ≥ ¼ of the steepest, first to last, reaching the end of the range
+within one interval); ``steepest``: the knot intervals, contiguous with the
+steepest one, whose slope |Δc/Δv| is at least half the steepest (how sharp the
+structure is, for :mod:`._resolution`). ``gain`` = held-out RMS of the model
+without the correction / with it.
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ from numpy.typing import NDArray
 from gyrotherm.analysis._effects import TAU_GRIDS, design
 from gyrotherm.analysis._prep import Prepared
 from gyrotherm.analysis._score import Evaluation, Selector, integrated_time, sse
+from gyrotherm.analysis._where import support_span, values_with_covariance
 
 FloatArray = NDArray[np.float64]
 
@@ -60,10 +64,13 @@ class Unexplained:
     heldout_rms_dps: float
     gain: float
     evidence: str
+    steepest: tuple[float, float] = (math.nan, math.nan)
+    """The steepest part of ``where`` (knot intervals at least half as steep)."""
 
     def to_dict(self) -> dict[str, Any]:
         return {"effect": "unexplained",
-                "params": {"variable": self.variable, "where": list(self.where)},
+                "params": {"variable": self.variable, "where": list(self.where),
+                           "steepest": list(self.steepest)},
                 "gain": self.gain, "heldout_rms_dps": self.heldout_rms_dps,
                 "evidence": self.evidence,
                 "correction": {"kind": "linear spline", "knots": list(self.knots),
@@ -265,9 +272,10 @@ def search_unexplained(
             before = evaluate_with(selector, catalogued.effects, others)
             after = evaluate_with(selector, catalogued.effects, [*others, (v, k)])
         ratio, improved, dbic = _compare(before, after)
-        values = two_stage(selector.runs, resid, v, k)
+        values, cov = values_with_covariance(
+            [hats(variable(p, v), k) for p in selector.runs], resid, k)
         found.append(Unexplained(
-            variable=v, where=steepest_span(k, values),
+            variable=v, where=support_span(k, values, cov), steepest=steepest_span(k, values),
             knots=tuple(float(x) for x in k), correction_dps=tuple(float(x) for x in values),
             heldout_rms_dps=after.heldout_rms_dps, gain=ratio,
             evidence=(f"linear spline in {v} ({len(k)} knots) on top of "

@@ -1,0 +1,116 @@
+"""Where an unexplained structure is: all of it, not only its steepest part.
+
+The correction of an unexplained structure (:mod:`._unexplained`) is a linear
+spline c(v) on K knots k_0 < … < k_{K−1} over the runs' 0.5–99.5 % range of its
+variable v, fitted (two-stage) to the final catalogued model's residuals with
+one offset per run. Its level is arbitrary (the offsets hold it), so where the
+structure *is* means where c changes. Single knot intervals are too noisy to
+test one by one (with Gauss–Markov bias noise τ_int is hundreds of 1-s blocks:
+a ×4 held-out gain can have no interval beyond 2.5 standard errors), so c is cut
+into its monotone runs [k_i, k_j] (maximal, a flat interval joining the run
+before it; end intervals flatter than :data:`REL_SLOPE` of the run's steepest
+trimmed off), and a run is part of the structure when
+
+* its change is significant, |c(k_j) − c(k_i)| ≥ :data:`Z_CHANGE` · SE, with SE
+  from the covariance of the spline values, σ²·τ_int·(BᵀB)⁺ (B the hats,
+  centred per run; σ² the residual variance after the spline; τ_int the
+  residuals' integrated autocorrelation time in blocks, as in the selection's
+  n_eff; pseudo-inverse: the constant is not identified, its differences are);
+* and its mean slope is at least :data:`REL_SLOPE` of the steepest run's.
+
+``where`` = [first, last] over those runs (a periodic bias: every half-period),
+widened by :data:`PAD_INTERVALS` knot interval on each side within the data's
+range (a hat is two intervals wide: the spline places a boundary no finer; a
+step's tails, a peak in the last interval). It is where the correction changes
+the catalogued model's prediction: the paper's T, T² (and ΔT) terms take part
+of a structure (a bias step's best quadratic), so what the correction adds on
+top spans more than the structure's steep part — a step's ``where`` brackets
+the step and may reach far beyond it.
+The steep part alone (the knot intervals contiguous with the steepest one and
+at least half as steep, :func:`~._unexplained.steepest_span`) is
+``Unexplained.steepest``: how sharp the structure is, and where a step is;
+:mod:`._resolution` compares it with the readout.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from gyrotherm.analysis._score import integrated_time
+
+FloatArray = NDArray[np.float64]
+
+Z_CHANGE = 3.0
+"""A monotone run is part of the structure when its change is this many standard errors
+from zero …"""
+REL_SLOPE = 0.25
+"""… and its mean slope at least this share of the steepest run's."""
+PAD_INTERVALS = 1
+"""Knot intervals added on each side: a hat is two intervals wide, so the spline places a
+boundary no finer than one (a step's tails, a peak in the last interval)."""
+
+
+def values_with_covariance(
+    blocks: Sequence[FloatArray], residuals: Sequence[FloatArray], knots: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Spline values at the knots (zero mean over the blocks) and their covariance
+    σ²·τ_int·(BᵀB)⁺, from per-run hat matrices ``blocks`` (n_r × K) and residuals."""
+    b = np.vstack([h - h.mean(axis=0, keepdims=True) for h in blocks])
+    e = np.concatenate([r - r.mean() for r in residuals])
+    beta, *_ = np.linalg.lstsq(b, e, rcond=1e-10)
+    left = e - b @ beta
+    sigma2 = float(left @ left) / max(len(e) - len(knots), 1)
+    bounds = np.cumsum([len(h) for h in blocks])[:-1]
+    tau = integrated_time(np.split(left, bounds))
+    cov = sigma2 * tau * np.linalg.pinv(b.T @ b, rcond=1e-10)
+    fitted = np.vstack(list(blocks)) @ beta
+    return np.asarray(beta - fitted.mean(), dtype=np.float64), np.asarray(cov, dtype=np.float64)
+
+
+def segments(values: FloatArray) -> list[tuple[int, int]]:
+    """Maximal runs of knot intervals over which ``values`` move one way, as (first
+    knot, last knot); a flat interval joins the run before it."""
+    sign = np.sign(np.diff(values))
+    out: list[tuple[int, int]] = []
+    start, current = 0, 0.0
+    for i, s in enumerate(sign.tolist()):
+        if s != 0 and current != 0 and s != current:
+            out.append((start, i))
+            start = i
+        if s != 0:
+            current = s
+    out.append((start, len(values) - 1))
+    return out
+
+
+def _core(knots: FloatArray, values: FloatArray, i: int, j: int) -> tuple[int, int]:
+    """Knots [i, j] of a monotone run without its end intervals flatter than
+    :data:`REL_SLOPE` of its steepest (a step's flat sides join it otherwise)."""
+    slope = np.abs(np.diff(values[i:j + 1]) / np.diff(knots[i:j + 1]))
+    strong = np.flatnonzero(slope >= REL_SLOPE * float(slope.max()))
+    return i + int(strong[0]), i + int(strong[-1]) + 1
+
+
+def support_span(knots: FloatArray, values: FloatArray, cov: FloatArray) -> tuple[float, float]:
+    """[low, high] over the monotone runs whose change is significant and whose mean
+    slope is not negligible (module docstring); the steepest run alone when none passes
+    both."""
+    runs = [_core(knots, values, i, j) for i, j in segments(values)]
+    change = np.array([values[j] - values[i] for i, j in runs])
+    se = np.empty(len(runs))
+    for n, (i, j) in enumerate(runs):
+        c = np.zeros(len(values))
+        c[i], c[j] = -1.0, 1.0
+        se[n] = math.sqrt(max(float(c @ cov @ c), 1e-300))
+    slope = np.abs(change) / np.array([knots[j] - knots[i] for i, j in runs])
+    steepest = int(np.argmax(slope))
+    keep = (np.abs(change) >= Z_CHANGE * se) & (slope >= REL_SLOPE * slope[steepest])
+    keep[steepest] = True
+    chosen = [runs[n] for n in np.flatnonzero(keep)]
+    first = max(chosen[0][0] - PAD_INTERVALS, 0)
+    last = min(chosen[-1][1] + PAD_INTERVALS, len(knots) - 1)
+    return float(knots[first]), float(knots[last])
