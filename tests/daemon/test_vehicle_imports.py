@@ -48,7 +48,10 @@ OFFLINE_PARTS = ("gyrotherm.readers", "gyrotherm.cli._offline", "gyrotherm.cli._
                  "gyrotherm.cli._demo", "gyrotherm.cli._export", "gyrotherm.cli._import",
                  "gyrotherm.codecs._runfile", "gyrotherm.codecs._candump",
                  "gyrotherm.codecs._wire_decode", "gyrotherm.compensation._fit",
-                 "gyrotherm.estimators._series")
+                 "gyrotherm.estimators._series",
+                 # learning on the vehicle: loaded only with [learn] (this child has none)
+                 "gyrotherm.daemon._learner", "gyrotherm.daemon._learn_store",
+                 "gyrotherm.compensation._learn", "gyrotherm.compensation._learnstate")
 
 VEHICLE_CHILD = textwrap.dedent("""
     import json, sys

@@ -45,6 +45,7 @@ from numpy.typing import NDArray
 
 from gyrotherm._errors import CalibrationError
 from gyrotherm.compensation._calibration import Calibration, ValidRange
+from gyrotherm.compensation._learn_gates import ADOPT_MARGIN, GATES, SETTLE_S, WARMUP_MAX_S
 from gyrotherm.compensation._models import Scaling, get_model
 from gyrotherm.estimators import EstimatorConfig
 
@@ -55,17 +56,9 @@ FloatArray = NDArray[np.float64]
 
 LEARN_SCALING = Scaling(t_ref_c=25.0, t_scale_c=30.0, dt_scale_c=5.0)
 K = 4  # slope terms: x², x, g, x·g (the paper model's order, intercept last)
-#: Rows of a warm-up used: after SETTLE_S (the estimator's ΔT converging) and at most
-#: WARMUP_MAX_S after power-on, at rest, until the first row in motion.
-SETTLE_S = 10.0
-WARMUP_MAX_S = 1800.0
 MIN_ROWS = 60
 #: A log whose first row is later than this after power-on has lost its warm-up's start.
 MAX_START_S = 60.0
-#: Named adoption gates (thresholds in the names' units).
-GATES = {"min_warmups": 3, "min_start_span_c": 8.0, "max_condition": 1e8}
-ADOPT_MARGIN = 0.10
-"""The candidate's held-out RMS must be ≤ (1 − margin) × the current one's, every axis."""
 
 
 def _z(temperature_c: FloatArray, delta_t_c: FloatArray) -> FloatArray:
@@ -313,5 +306,6 @@ def learnt_calibration(stats: Sequence[WarmupStats], axes: Sequence[str], *,
                        provenance=record)
 
 
-__all__ = ["ADOPT_MARGIN", "GATES", "LEARN_SCALING", "Decision", "WarmupStats", "decide",
-           "heldout_bias_rms", "heldout_rms", "learnt_calibration", "noise_var", "warmup_rows"]
+__all__ = ["ADOPT_MARGIN", "GATES", "LEARN_SCALING", "SETTLE_S", "WARMUP_MAX_S", "Decision",
+           "WarmupStats", "decide", "heldout_bias_rms", "heldout_rms", "learnt_calibration",
+           "noise_var", "warmup_rows"]

@@ -18,7 +18,7 @@ import contextlib
 import logging
 import math
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import zenoh
 
@@ -35,9 +35,11 @@ from gyrotherm.compensation import Calibration
 from gyrotherm.daemon._calload import load_daemon_calibration
 from gyrotherm.daemon._config import DaemonConfig
 from gyrotherm.daemon._effects_store import EffectsKeeper
-from gyrotherm.daemon._learner import Learner
 from gyrotherm.daemon._pipeline import Pipeline
 from gyrotherm.daemon._sink import _ZenohSink
+
+if TYPE_CHECKING:  # loaded only when [learn] is configured
+    from gyrotherm.daemon._learner import Learner
 
 log = logging.getLogger("gyrotherm.daemon")
 
@@ -68,6 +70,8 @@ class ImuChannel:
                           self.sensor, exc)
         self.learner: Learner | None = None
         if config.learn is not None:
+            from gyrotherm.daemon._learner import Learner  # only with [learn]: footprint
+
             assert config.state_dir is not None  # parse_config requires it
             self.learner = Learner(
                 config.learn, vehicle=config.vehicle, sensor=config.sensor,

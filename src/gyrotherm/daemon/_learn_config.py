@@ -37,7 +37,7 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 from gyrotherm._errors import ConfigError
-from gyrotherm.compensation._learn import ADOPT_MARGIN, GATES, SETTLE_S, WARMUP_MAX_S
+from gyrotherm.compensation._learn_gates import ADOPT_MARGIN, GATES, SETTLE_S, WARMUP_MAX_S
 
 #: (lowest, highest) accepted per key; integers for ``min_warmups``.
 LIMITS: dict[str, tuple[float, float]] = {

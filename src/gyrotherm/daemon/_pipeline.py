@@ -38,7 +38,7 @@ import logging
 import math
 from collections import Counter
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from gyrotherm._errors import ConfigError, PublishError
 from gyrotherm.bus import TransportItem
@@ -64,7 +64,6 @@ from gyrotherm.daemon._compensation import (
     POWER_ON_GAP_S,
     Compensation,
 )
-from gyrotherm.daemon._learner import Learner
 from gyrotherm.daemon._timewindow import (
     BAD_TIMESTAMP,
     MAX_ABS_TIME_S,
@@ -73,6 +72,9 @@ from gyrotherm.daemon._timewindow import (
     TimeWindow,
 )
 from gyrotherm.estimators import EstimatorConfig, TemperatureEstimate, TemperatureEstimator
+
+if TYPE_CHECKING:  # loaded only when [learn] is configured (daemon._imu)
+    from gyrotherm.daemon._learner import Learner
 
 log = logging.getLogger("gyrotherm.daemon")
 
