@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -67,6 +67,7 @@ from gyrotherm.analysis._resolve import (
 from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._select import Selection, select
 from gyrotherm.analysis._separable import drop_inseparable_drift
+from gyrotherm.analysis._shape_check import shape_notes
 from gyrotherm.analysis._unexplained import VARIABLES, Unexplained, search_unexplained
 from gyrotherm.codecs import AXES, Run
 from gyrotherm.compensation import Scaling
@@ -270,6 +271,11 @@ def diagnose(
             heldout_rms_dps=alone.heldout_rms_dps,
             gain=base_ev.heldout_rms_dps / alone.heldout_rms_dps,
         ))
+    shapes = shape_notes(selector, final_ev.effects,
+                         [(u.variable, np.array(u.knots)) for u in search.unexplained])
+    findings = [replace(f, shape=shapes[f.effect]) if f.effect in shapes else f
+                for f in findings]
+    notes += [f"{name}: {text}" for name, text in shapes.items()]
     findings.sort(key=lambda f: -f.gain)
     resid = _residuals(selector, base_ev)
     ext_resid = _residuals(selector, final_ev)
@@ -290,8 +296,6 @@ def diagnose(
     if not simulate:
         return diagnosis
     say(f"calibrating the simulator and replaying the runs {replays}× per model")
-    from dataclasses import replace
-
     sim = compare_simulation(runs, readouts, diagnosis, est_tau=tau_s, self_heating_c=heating,
                              seed=seed, replays=replays, features=features)
     return replace(diagnosis, simulation=sim, notes=(*diagnosis.notes, *sim.notes))

@@ -1,0 +1,116 @@
+"""Is a catalogued finding's form the shape of the data's structure?
+
+Four catalogued effects are functions of one variable the unexplained search
+also tries (:mod:`._unexplained`): ``cubic`` (T), ``gradient_quadratic`` (ΔT),
+``warmup`` and ``drift`` (time since power-on). When one of them is named, its
+catalogued form is compared with the nonparametric curve in its variable: the
+model with the effect replaced by the linear spline in that variable, fitted
+jointly and scored leave-one-run-out like everything else (next to the
+unexplained corrections already found). When the spline is clearly better held
+out — held-out RMS lower by ×(1 + :data:`SHAPE_MARGIN`) and better on at least
+half of the left-out runs; ΔBIC_eff is reported, not required (the held-out
+score already pays for the spline's freedom, and the note names no new effect)
+— the finding keeps its name (it is the nearest catalogued effect and buys its
+gain) with a note that the shape differs (``Finding.shape``). A spline that also
+passes the selection's entry criteria (×1.10 and ΔBIC_eff < 0) has already
+replaced the effect in the unexplained search. When the unexplained search
+already reports a structure in the effect's variable beside it, the effect is
+not the whole of that shape: the note says so.
+
+For ``gradient_quadratic`` the note also says how the shape differs, from the
+spline fitted (two-stage) to the residuals of the model without the effect: its
+even share over the ΔT range symmetric about 0 (even: the same sign heating and
+cooling; odd: opposite signs, which ΔT² cannot follow) and the power p of the
+best α + β·|ΔT|^p over the knots (p ∈ :data:`POWERS`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from gyrotherm.analysis._score import Evaluation, Selector
+from gyrotherm.analysis._unexplained import evaluate_with, knots_for, two_stage
+
+FloatArray = NDArray[np.float64]
+
+SHAPE_VARIABLE = {"cubic": "temperature_c", "gradient_quadratic": "delta_t_c",
+                  "warmup": "time_since_power_on_s", "drift": "time_since_power_on_s"}
+FORMS = {"cubic": "c·(T − T₀)³", "gradient_quadratic": "c·ΔT²", "warmup": "A·exp(−t/τ)",
+         "drift": "s·t"}
+SHAPE_MARGIN = 0.03
+POWERS = (0.5, 1.0, 1.5, 2.0, 3.0)
+
+
+def _gradient_shape(knots: FloatArray, values: FloatArray) -> str:
+    """How a curve in ΔT differs from ΔT²: symmetry about 0 and the best power."""
+    parts = []
+    reach = min(-float(knots[0]), float(knots[-1]))
+    if reach > 0:
+        g = np.linspace(0.0, reach, 21)
+        plus, minus = np.interp(g, knots, values), np.interp(-g, knots, values)
+        even = (plus + minus) / 2.0
+        even = even - even.mean()
+        odd = (plus - minus) / 2.0
+        share = float(np.sum(even**2) / max(np.sum(even**2) + np.sum(odd**2), 1e-300))
+        if share >= 0.7:
+            parts.append(f"even in ΔT (the same sign heating and cooling; even share "
+                         f"{share:.0%})")
+        elif share <= 0.3:
+            parts.append(f"odd in ΔT (opposite signs heating and cooling, which ΔT² cannot "
+                         f"follow; even share {share:.0%})")
+        else:
+            parts.append(f"neither even nor odd in ΔT (even share {share:.0%})")
+    sse = []
+    for p in POWERS:
+        x = np.column_stack([np.ones(len(knots)), np.abs(knots) ** p])
+        coef, *_ = np.linalg.lstsq(x, values, rcond=None)
+        sse.append(float(np.sum((values - x @ coef) ** 2)))
+    best = POWERS[int(np.argmin(sse))]
+    parts.append(f"closest to |ΔT|^{best:g}" + (", not ΔT²" if best != 2.0 else ""))
+    return "; ".join(parts)
+
+
+def shape_notes(
+    selector: Selector, effects: Mapping[str, float],
+    splines: Sequence[tuple[str, FloatArray]],
+) -> dict[str, str]:
+    """Effect → note, for the catalogued effects of ``effects`` whose variable's spline
+    fits clearly better in their place (module docstring)."""
+    from gyrotherm.analysis._select import _compare
+
+    need = math.ceil(len(selector.runs) / 2)
+    taken = {v for v, _ in splines}
+    base: Evaluation | None = None
+    notes: dict[str, str] = {}
+    for name in effects:
+        v = SHAPE_VARIABLE.get(name)
+        if v is None:
+            continue
+        rest = {k: x for k, x in effects.items() if k != name}
+        knots = knots_for(selector.runs, v)
+        if v in taken:
+            text = (f"the shape differs: beside {FORMS[name]} an unexplained structure in {v} "
+                    f"is reported, so {FORMS[name]} is not the whole of its shape")
+        else:
+            if base is None:
+                base = evaluate_with(selector, effects, splines)
+            alt = evaluate_with(selector, rest, [*splines, (v, knots)])
+            ratio, improved, dbic = _compare(base, alt)
+            if ratio < 1.0 + SHAPE_MARGIN or improved < need:
+                continue
+            text = (f"the shape differs: a linear spline in {v} in place of {FORMS[name]} is "
+                    f"better held out (RMS {base.heldout_rms_dps:.5f} → "
+                    f"{alt.heldout_rms_dps:.5f} °/s, ×{ratio:.3f}, better on {improved}/"
+                    f"{len(selector.runs)} left-out runs; ΔBIC_eff = {dbic:.1f}, which the "
+                    "11 spline columns pay for)")
+        if name == "gradient_quadratic":
+            without = evaluate_with(selector, rest, [])
+            resid = selector.residuals(rest, without.coefficients)
+            text += "; the structure is " + _gradient_shape(
+                knots, two_stage(selector.runs, resid, v, knots))
+        notes[name] = text
+    return notes
