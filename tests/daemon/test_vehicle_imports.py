@@ -51,7 +51,9 @@ OFFLINE_PARTS = ("gyrotherm.readers", "gyrotherm.cli._offline", "gyrotherm.cli._
                  "gyrotherm.estimators._series",
                  # learning on the vehicle: loaded only with [learn] (this child has none)
                  "gyrotherm.daemon._learner", "gyrotherm.daemon._learn_store",
-                 "gyrotherm.compensation._learn", "gyrotherm.compensation._learnstate")
+                 "gyrotherm.compensation._learn", "gyrotherm.compensation._learnstate",
+                 # the consistency signal: several IMUs only (this child has one)
+                 "gyrotherm.daemon._consistency", "gyrotherm.codecs._wire_consistency")
 
 VEHICLE_CHILD = textwrap.dedent("""
     import json, sys

@@ -41,7 +41,7 @@ from collections import Counter
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import FrameType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import zenoh
 
@@ -49,18 +49,19 @@ from gyrotherm._memory import TRIM_PERIOD_S, release_free_heap
 from gyrotherm._zenoh import KEY_PREFIX, KeyExprs, session_config, zenoh_error_text
 from gyrotherm.bus import FrameSource, TransportItem
 from gyrotherm.codecs._canmap import EXTENDED_KEY
-from gyrotherm.codecs._wire_consistency import encode_consistency
 from gyrotherm.compensation import Calibration
 from gyrotherm.daemon._attempt import close_session, open_session
 from gyrotherm.daemon._buskeeper import BusKeeper
 from gyrotherm.daemon._config import DaemonConfig
-from gyrotherm.daemon._consistency import Consistency
 from gyrotherm.daemon._effects_store import EffectsKeeper
 from gyrotherm.daemon._imu import ImuChannel
 from gyrotherm.daemon._pipeline import Counters, Pipeline
 from gyrotherm.daemon._sdnotify import Notifier
 from gyrotherm.daemon._sink import bound_publishing
 from gyrotherm.daemon._vehicle import VehicleConfig
+
+if TYPE_CHECKING:  # loaded only for several IMUs with a consistency check
+    from gyrotherm.daemon._consistency import Consistency
 
 log = logging.getLogger("gyrotherm.daemon")
 
@@ -100,9 +101,11 @@ class Daemon:
         """Set once the bus and the Zenoh session are up (for tests and embedding)."""
         self._multi = vehicle.multi
         self.channels = [ImuChannel(c, tolerant=self._multi) for c in vehicle.imus]
-        self.consistency = (Consistency(vehicle.sensors, vehicle.consistency)
-                            if vehicle.consistency is not None and len(self.channels) > 1
-                            else None)
+        self.consistency: Consistency | None = None
+        if vehicle.consistency is not None and len(self.channels) > 1:
+            from gyrotherm.daemon._consistency import Consistency  # several IMUs only
+
+            self.consistency = Consistency(vehicle.sensors, vehicle.consistency)
         self._consistency_pubs: list[Any] = []
         self._bus_received = 0
         self._bus_drops: Counter[str] = Counter()
@@ -372,6 +375,8 @@ class Daemon:
                 ch.publish_health(now, self._started, silent=silent)
                 published = True
         if self.consistency is not None:
+            from gyrotherm.codecs._wire_consistency import encode_consistency
+
             for pub, msg in zip(self._consistency_pubs, self.consistency.poll(time.time()),
                                 strict=False):
                 try:
