@@ -183,3 +183,25 @@ def test_rate_dependent_hysteresis_is_named_hysteresis() -> None:
     assert f.effect == "hysteresis" and f.gain > 1.5
     true = truth.shapes["rate_hysteresis"]["amplitude_dps"]
     assert abs(f.params["amplitude_dps"] / true - 1.0) < 0.2
+
+
+def test_abs_dt_named_gradient_quadratic_carries_the_shape_note() -> None:
+    # dev seed 34: |ΔT| is named gradient² (the nearest catalogued form); the spline in
+    # ΔT in its place is better held out, so the finding says the shape differs
+    d, truth = _diagnosed("abs_dt", seed=34)
+    (f,) = d.findings
+    assert f.effect == "gradient_quadratic" and f.gain > 1.2
+    assert "the shape differs" in f.shape and "same sign heating and cooling" in f.shape
+    assert "not ΔT²" in f.shape
+    assert f.to_dict()["shape_differs"] == f.shape
+    assert any(n.startswith("gradient_quadratic: the shape differs") for n in d.notes)
+    assert truth.shapes["abs_dt"]["slope_dps_per_c"] != 0.0
+
+
+def test_catalogued_gradient_quadratic_carries_no_shape_note() -> None:
+    runs, _ = variant_runs(SynthConfig(duration_s=6000.0, rate_hz=10.0,
+                                       effects={"gradient_quadratic": {}}),
+                           n_runs=4, seed=DEV)
+    (f,) = diagnose(runs, simulate=False).findings
+    assert f.effect == "gradient_quadratic" and f.shape == ""
+    assert "shape_differs" not in f.to_dict()
