@@ -19,9 +19,11 @@ from gyrotherm.compensation._learn import (
     WarmupStats,
     basis_slopes,
     decide,
+    heldout_bias_rms,
     heldout_rms,
     learnt_calibration,
     slopes,
+    unseen,
     warmup_rows,
 )
 from gyrotherm.compensation._rest import rest_of_run
@@ -159,3 +161,35 @@ def test_an_axis_without_thermal_bias_is_not_adopted_the_others_are() -> None:
     assert "not better than no compensation by 10 % on z" in d.reasons[-1]
     cal = learnt_calibration(stats, AXES, estimator=EST, decision=d)
     assert cal.coefficients["z"] == (0.0,) * 5
+
+
+def test_a_learnt_calibration_is_judged_on_warmups_it_never_saw(
+        feats: list[RunFeatures]) -> None:
+    """Re-adoption: a calibration learnt from 3 power-ons is scored only on the 7 it
+    was not learnt from (on its own training warm-ups it would look better than it is,
+    and nothing newer would replace it), the candidate on the same 7; with no new
+    warm-up the current one is kept, saying why. A current calibration with the right
+    provenance but no thermal shape is replaced by the 10-power-on one, which is closer
+    to the simulator's true bias on 4 power-ons neither saw."""
+    stats = [WarmupStats.from_features(f) for f in feats[:10]]
+    current = learnt_calibration(stats[:3], AXES, estimator=EST)
+    assert unseen(stats, current) == list(range(3, 10))
+    assert unseen(stats, None) == list(range(10))
+    d = decide(stats, current, AXES)
+    for a in AXES:
+        assert d.current_rms_dps[a] == pytest.approx(heldout_bias_rms(
+            stats, a, basis_slopes(current, a), list(range(3, 10))), rel=1e-12)
+        assert d.candidate_rms_dps[a] == pytest.approx(heldout_bias_rms(
+            stats, a, scored=list(range(3, 10))), rel=1e-12)
+    kept = decide(stats[:3], current, AXES)
+    assert not kept.adopt and "none that the current calibration was not learnt from" \
+        in kept.reasons[0]
+    flat = replace(current, coefficients={a: (0.0, 0.0, 0.0, 0.0, c[-1])
+                                          for a, c in current.coefficients.items()})
+    d = decide(stats, flat, AXES)
+    assert d.adopt and d.axes_adopted == AXES
+    new = learnt_calibration(stats, AXES, estimator=EST, decision=d)
+    held = [WarmupStats.from_features(features(r, EST)) for r in life(4, seed=6)]
+    for a in AXES:
+        assert heldout_bias_rms(held, a, basis_slopes(new, a)) < \
+            0.5 * heldout_bias_rms(held, a, basis_slopes(flat, a))

@@ -60,8 +60,10 @@ def test_a_failed_rename_keeps_the_adopted_file_whole_and_in_use(
         adopted: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     d = _copy(adopted, tmp_path / "s")
     good, _ = read_calibration(d / LEARNT)
-    text_a, id_a = store.calibration_text(_bad_learnt(good))
-    store.write_atomic(d / LEARNT, text_a)  # the previously adopted one: A
+    # the previously adopted one, A, learnt from earlier power-ons (a learnt calibration
+    # is judged only on warm-ups it was not learnt from)
+    text_a, id_a = store.calibration_text(_bad_learnt(good, power_ons=[{"name": "earlier"}]))
+    store.write_atomic(d / LEARNT, text_a)
     before = (d / LEARNT).read_bytes()
     real_replace = os.replace
 

@@ -213,15 +213,26 @@ class Decision:
 
 
 def heldout_rms(stats: Sequence[WarmupStats], axis: str,
-                fixed: FloatArray | None = None) -> float:
+                fixed: FloatArray | None = None, scored: Sequence[int] | None = None
+                ) -> float:
     """RMS on each warm-up of slopes fitted without it (``fixed``: the same slopes for
-    every warm-up, a calibration learnt elsewhere), offsets removed per warm-up."""
-    sse = 0.0
-    for k, w in enumerate(stats):
+    every warm-up, a calibration learnt elsewhere), offsets removed per warm-up; over
+    the warm-ups ``scored`` (indices; default all), the fits still using all the others."""
+    sse, n = 0.0, 0
+    for k in range(len(stats)) if scored is None else scored:
         beta = fixed if fixed is not None else slopes(
             [s for j, s in enumerate(stats) if j != k], axis)[0]
-        sse += w.sse(axis, beta)
-    return math.sqrt(sse / sum(w.n for w in stats))
+        sse += stats[k].sse(axis, beta)
+        n += stats[k].n
+    return math.sqrt(sse / n)
+
+
+def unseen(stats: Sequence[WarmupStats], current: Calibration | None) -> list[int]:
+    """Indices of the warm-ups ``current`` was not learnt from (its provenance's
+    ``power_ons``): all of them for a chamber calibration or none."""
+    record = current.provenance if current is not None else {}
+    used = {p.get("name") for p in record.get("power_ons", ()) if isinstance(p, Mapping)}
+    return [k for k, w in enumerate(stats) if w.name not in used]
 
 
 def noise_var(stats: Sequence[WarmupStats], axis: str) -> float:
@@ -231,11 +242,13 @@ def noise_var(stats: Sequence[WarmupStats], axis: str) -> float:
 
 
 def heldout_bias_rms(stats: Sequence[WarmupStats], axis: str,
-                     fixed: FloatArray | None = None) -> float:
+                     fixed: FloatArray | None = None, scored: Sequence[int] | None = None
+                     ) -> float:
     """:func:`heldout_rms` with the white noise taken out: the RMS of the bias error,
-    √max(SSE/n − σ², 0) (°/s)."""
-    rms = heldout_rms(stats, axis, fixed)
-    return math.sqrt(max(rms * rms - noise_var(stats, axis), 0.0))
+    √max(SSE/n − σ², 0) (°/s), σ² from the warm-ups scored."""
+    rms = heldout_rms(stats, axis, fixed, scored)
+    noise = noise_var(stats if scored is None else [stats[k] for k in scored], axis)
+    return math.sqrt(max(rms * rms - noise, 0.0))
 
 
 def decide(stats: Sequence[WarmupStats], current: Calibration | None,
@@ -262,8 +275,16 @@ def decide(stats: Sequence[WarmupStats], current: Calibration | None,
     if not cond <= GATES["max_condition"]:
         return Decision(False, (f"conditioning: {cond:.3g} > {GATES['max_condition']:g}",),
                         len(stats), span, cond)
-    cand = {a: heldout_bias_rms(stats, a) for a in axes}
-    cur = {a: heldout_bias_rms(stats, a, basis_slopes(current, a)) for a in axes}
+    # the current calibration is scored only on warm-ups it was not learnt from (a
+    # learnt one would otherwise be judged on its own training data), the candidate on
+    # the same ones, each fitted without the one it is scored on
+    fresh = unseen(stats, current)
+    if not fresh:
+        return Decision(False, ("held-out warm-ups: none that the current calibration was "
+                                "not learnt from: it is kept until a new one comes",),
+                        len(stats), span, cond)
+    cand = {a: heldout_bias_rms(stats, a, scored=fresh) for a in axes}
+    cur = {a: heldout_bias_rms(stats, a, basis_slopes(current, a), fresh) for a in axes}
     better = tuple(a for a in axes if cand[a] <= (1.0 - margin) * cur[a])
     worse = [a for a in axes if a not in better]
     what = "no compensation" if current is None else "the current calibration"
@@ -308,4 +329,4 @@ def learnt_calibration(stats: Sequence[WarmupStats], axes: Sequence[str], *,
 
 __all__ = ["ADOPT_MARGIN", "GATES", "LEARN_SCALING", "SETTLE_S", "WARMUP_MAX_S", "Decision",
            "WarmupStats", "decide", "heldout_bias_rms", "heldout_rms", "learnt_calibration",
-           "noise_var", "warmup_rows"]
+           "noise_var", "unseen", "warmup_rows"]
