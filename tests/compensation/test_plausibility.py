@@ -173,3 +173,34 @@ def test_fuzz_every_loadable_calibration_stays_within_the_bound(
         b = comp.step(ti, ci, di, ti)
         for v in b.bias_dps.values():
             assert math.isfinite(v) and abs(v) <= MAX_BIAS_DPS * (1 + 1e-9), (ti, ci, di, v)
+
+
+@pytest.mark.parametrize("model", ["paper", "t2", "t3"])
+@pytest.mark.parametrize("seed", range(8))
+def test_the_base_polynomials_maximum_is_exact(v1: Calibration, model: str, seed: int) -> None:
+    """The plain-float maximum of |base polynomial| over the valid box against a dense
+    numpy grid (401 T × 41 ΔT, the box's corners and edges on it): never below it, and
+    above it by no more than the grid can miss between its points (a vertex of a
+    curvature this large moves |bias| by ≈ curvature·(step/2)²)."""
+    from dataclasses import replace
+
+    from gyrotherm.compensation import ValidRange, get_model
+    from gyrotherm.compensation._plausibility import _base_max, _base_max_grid
+
+    rng = np.random.default_rng(seed)
+    spec = get_model(model)
+    lo = float(rng.uniform(-40, 20))
+    box = ValidRange(lo, lo + float(rng.uniform(5, 80)), -float(rng.uniform(0.5, 8)),
+                     float(rng.uniform(0.5, 8)))
+    coefficients = {a: tuple(float(c) for c in rng.normal(0.0, 0.5, len(spec.terms)))
+                    for a in v1.axes}
+    cal = replace(v1, model=spec, coefficients=coefficients, valid_range=box)
+    t = np.linspace(box.t_min_c, box.t_max_c, 401)
+    d = np.linspace(box.dt_min_c, box.dt_max_c, 41)
+    tt, dd = np.meshgrid(t, d)
+    for a in cal.axes:
+        dense = float(np.max(np.abs(cal.base_series(a, tt.ravel(), dd.ravel()))))
+        exact = _base_max(cal, a)
+        assert dense <= exact * (1 + 1e-12) + 1e-12
+        assert exact <= dense * (1 + 1e-3) + 1e-9
+        assert exact >= _base_max_grid(cal, a) * (1 - 1e-12) - 1e-12

@@ -14,7 +14,7 @@ over the states it can reach (docs/model.md §6, module ``_effects``):
 ====================  ===========================================================
 part                  largest |bias| it can add, °/s
 ====================  ===========================================================
-base polynomial       max over a 65 × 65 grid of the valid T × ΔT box (+ corners)
+base polynomial       max over the valid T × ΔT box (exact: :func:`_base_max_exact`)
 ``hysteresis``        \\|A\\| (h ∈ [−1, 1])
 ``warmup``            \\|A\\| (t_on ≥ 0: exp(−t_on/τ) ≤ 1)
 ``cubic``             \\|c\\|·max(\\|t_min − T_ref\\|, \\|t_max − T_ref\\|)³ (T̂_s clamped)
@@ -65,6 +65,55 @@ def _refuse(axis: str, part: str, detail: str) -> CalibrationError:
 
 
 def _base_max(cal: Calibration, axis: str) -> float:
+    """max |base polynomial| over the valid T × ΔT box: exact for the shipped models
+    (:func:`_base_max_exact`), else on a :data:`_GRID`² grid."""
+    if all(t.t_power <= 3 and t.dt_power <= 1 for t in cal.model.terms):
+        return _base_max_exact(cal, axis)
+    return _base_max_grid(cal, axis)
+
+
+def _base_max_exact(cal: Calibration, axis: str) -> float:
+    """The exact maximum for a polynomial of degree ≤ 3 in T and ≤ 1 in ΔT (``paper``,
+    ``t2``, ``t3``), in plain floats. For a fixed T it is linear in ΔT, so |bias| is
+    largest at one of the box's two ΔT ends; at each, a polynomial p(x) of degree ≤ 3 in
+    x = (T − T_ref)/s is largest in magnitude at an end of the T range or where p′ = 0.
+    Evaluated with :meth:`Calibration.base_bias`. No numpy: the daemon checks every
+    calibration it loads, and numpy's array code paged in for a grid stays resident
+    (≈ 0.7 MB of the daemon's memory, ``bench/footprint.py``)."""
+    r, s = cal.valid_range, cal.scaling
+    coef = cal.coefficients[axis]
+    x_lo = (r.t_min_c - s.t_ref_c) / s.t_scale_c
+    x_hi = (r.t_max_c - s.t_ref_c) / s.t_scale_c
+    best = 0.0
+    try:
+        for dt in (r.dt_min_c, r.dt_max_c):
+            g = dt / s.dt_scale_c
+            a = [0.0, 0.0, 0.0, 0.0]  # p(x) = a0 + a1 x + a2 x² + a3 x³ at this ΔT
+            for term, c in zip(cal.model.terms, coef, strict=True):
+                a[term.t_power] += c * g ** term.dt_power
+            for x in (x_lo, x_hi, *(x for x in _stationary(a) if x_lo < x < x_hi)):
+                v = cal.base_bias(axis, s.t_ref_c + x * s.t_scale_c, dt)
+                if not math.isfinite(v):
+                    return math.inf
+                best = max(best, abs(v))
+    except (OverflowError, ValueError):  # a coefficient so large the sums overflow
+        return math.inf
+    return best
+
+
+def _stationary(a: list[float]) -> list[float]:
+    """Real roots of p′(x) = a1 + 2 a2 x + 3 a3 x²."""
+    q, b, c = 3.0 * a[3], 2.0 * a[2], a[1]
+    if q == 0.0:
+        return [-c / b] if b != 0.0 else []
+    disc = b * b - 4.0 * q * c
+    if disc < 0.0:
+        return []
+    root = math.sqrt(disc)
+    return [(-b - root) / (2.0 * q), (-b + root) / (2.0 * q)]
+
+
+def _base_max_grid(cal: Calibration, axis: str) -> float:
     r = cal.valid_range
     t = np.linspace(r.t_min_c, r.t_max_c, _GRID)
     d = np.linspace(r.dt_min_c, r.dt_max_c, _GRID)
