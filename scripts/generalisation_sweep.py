@@ -353,6 +353,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--cases", nargs="+", metavar="NAME", help="only these cases")
     p.add_argument("--json", metavar="OUT", help="also write the rows as JSON here")
     args = p.parse_args(argv)
+    revision = commit()  # the code that runs: HEAD may move while the sweep does
     start = time.perf_counter()
     rows = sweep(SEED_SETS[args.seeds], quick=args.quick, conditions=args.conditions,
                  only=args.cases)
@@ -361,7 +362,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         " --quick" if args.quick else "") + (
         " --conditions " + " ".join(map(str, args.conditions)) if args.conditions else "") + (
         " --cases " + " ".join(args.cases) if args.cases else "")
-    print(f"`.venv/bin/python {cmd}` at commit {commit()}, {args.seeds} seeds "
+    print(f"`.venv/bin/python {cmd}` at commit {revision}, {args.seeds} seeds "
           f"{', '.join(str(s) for s in sorted({r['seed'] for r in rows}))}, "
           f"{DURATION_S:g}-s runs, {len(rows)} diagnoses, {elapsed:.0f} s")
     print()
@@ -381,7 +382,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.json:
         out = Path(args.json)
         out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps({"commit": commit(), "seeds": args.seeds,
+        out.write_text(json.dumps({"commit": revision, "seeds": args.seeds,
                                    "elapsed_s": elapsed, "rows": rows},
                                   indent=2) + "\n", encoding="utf-8")
     return 0
