@@ -37,7 +37,7 @@ import can
 import numpy as np
 
 from gyrotherm.analysis._effects import BASE_COLUMNS, ExtendedModel
-from gyrotherm.analysis._export import calibration_from_models
+from gyrotherm.analysis._to_calibration import calibration_from_models
 from gyrotherm.codecs import FrameDecoder, FrameEncoder, Run
 from gyrotherm.compensation import Calibration, Scaling, ValidRange, ZeroConfig
 from gyrotherm.daemon import Pipeline

@@ -35,7 +35,7 @@ import pytest
 import zenoh
 
 from gyrotherm.analysis._effects import BASE_COLUMNS, ExtendedModel
-from gyrotherm.analysis._export import calibration_from_models
+from gyrotherm.analysis._to_calibration import calibration_from_models
 from gyrotherm.bus import open_bus
 from gyrotherm.client import Subscriber
 from gyrotherm.codecs import FrameEncoder, RateSample, Run, SignalMap, TemperatureSample

@@ -14,7 +14,7 @@ import pytest
 from calkit import DELETE, broken
 from gyrotherm import CalibrationError
 from gyrotherm.analysis._effects import BASE_COLUMNS, ExtendedModel, design
-from gyrotherm.analysis._export import calibration_from_models
+from gyrotherm.analysis._to_calibration import calibration_from_models
 from gyrotherm.compensation import (
     Calibration,
     Compensator,

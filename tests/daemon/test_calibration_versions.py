@@ -11,7 +11,7 @@ import pytest
 
 from gyrotherm import CalibrationError
 from gyrotherm.analysis._effects import BASE_COLUMNS, ExtendedModel
-from gyrotherm.analysis._export import calibration_from_models
+from gyrotherm.analysis._to_calibration import calibration_from_models
 from gyrotherm.codecs import FrameDecoder
 from gyrotherm.compensation import Scaling, ValidRange
 from gyrotherm.daemon import Daemon, Pipeline, parse_config

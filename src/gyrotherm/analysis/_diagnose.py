@@ -47,7 +47,6 @@ from gyrotherm.analysis._compare import (
     compare_simulation,
 )
 from gyrotherm.analysis._effects import EFFECTS, ExtendedModel
-from gyrotherm.analysis._export import EffectsFit, fit_effects
 from gyrotherm.analysis._prep import (
     DEFAULT_TAU_S,
     Prepared,
@@ -68,6 +67,7 @@ from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._select import Selection, select
 from gyrotherm.analysis._separable import drop_inseparable_drift
 from gyrotherm.analysis._shape_check import shape_notes
+from gyrotherm.analysis._to_calibration import EffectsFit, fit_effects
 from gyrotherm.analysis._unexplained import VARIABLES, Unexplained, search_unexplained
 from gyrotherm.codecs import AXES, Run
 from gyrotherm.compensation import Scaling
@@ -316,7 +316,7 @@ def export_calibration(
     selection (``margin``, the diagnosis' ``features``) on every other axis;
     nothing found gives the paper model on that axis. Coefficients and
     nonlinear parameters are then refitted on every axis with the causal
-    estimator the calibration stores (:func:`~gyrotherm.analysis._export.fit_effects`:
+    estimator the calibration stores (:func:`~gyrotherm.analysis._to_calibration.fit_effects`:
     the features the vehicle computes; the diagnosis' own ΔT comes from a
     zero-phase smoother the vehicle cannot run). τ is the diagnosis'.
     """

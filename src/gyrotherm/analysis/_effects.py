@@ -353,7 +353,7 @@ def add_bias(run: Run, model: ExtendedModel, axis: str) -> Run:
     run's first row: with the online kernel (:meth:`ExtendedModel.bias`), except on a
     uniform time grid (the simulator's), where the diagnosis' vectorised columns equal
     the kernel to 1e-12 (tests/compensation/test_effects_online.py, and
-    tests/analysis/test_export.py on a simulated run) at ~1/50 of its cost: the
+    tests/analysis/test_to_calibration.py on a simulated run) at ~1/50 of its cost: the
     diagnosis replays every run 5× per model, 2.5 M kernel steps on 7 × 2 h at 10 Hz.
     """
     if "true_temperature_c" not in run.extra or "true_delta_t_c" not in run.extra:

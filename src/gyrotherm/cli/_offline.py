@@ -228,7 +228,7 @@ def _fit_effects(args: argparse.Namespace, est: EstimatorConfig, feats: list[Run
                  names: tuple[str, ...], gates: list[Gate]) -> int:
     """``fit --effects``: the paper model plus named effects on every axis, their
     nonlinear parameters searched per axis as the diagnosis does; a version-2 file."""
-    from gyrotherm.analysis._export import fit_effects
+    from gyrotherm.analysis._to_calibration import fit_effects
     from gyrotherm.compensation._fit import common_axes
 
     result = fit_effects(feats, {a: names for a in common_axes(feats)}, estimator=est,

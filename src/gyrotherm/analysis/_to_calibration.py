@@ -1,4 +1,8 @@
-"""Extended models as calibration files: the converter and named-effect fits.
+"""Extended models as calibration files: the converter and named-effect fits (what
+``gyrotherm diagnose --calibration`` writes: a diagnosis turned into a gyrotherm
+calibration). Not the autopilot export: ``gyrotherm export``
+(:mod:`gyrotherm.cli._export`, :mod:`gyrotherm.compensation._autopilot`) writes
+ArduPilot/PX4 parameters from a calibration.
 
 :func:`calibration_from_models` turns fitted :class:`ExtendedModel`\\ s, one per
 axis, into a :class:`~gyrotherm.compensation.Calibration`: base coefficients
