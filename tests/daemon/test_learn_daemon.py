@@ -147,3 +147,29 @@ def test_learning_state_file_is_bounded_statistics(tmp_path: Path) -> None:
     assert doc_a["learn"]["warmups"][0]["n"] < 2000 < 8000 < doc_b["learn"]["warmups"][0]["n"]
     size_a, size_b = len(json.dumps(doc_a["learn"])), len(json.dumps(doc_b["learn"]))
     assert abs(size_a - size_b) < 100 and size_b < 4000
+
+
+def test_status_never_shows_an_older_decisions_reasons(tmp_path: Path) -> None:
+    """A warm-up was just added and the worker has not decided on it yet: the status is
+    'validating', not the previous decision's reasons (found by the whole-daemon test,
+    where the decision runs on a worker thread)."""
+    from gyrotherm.compensation import features
+    from gyrotherm.compensation._learn import WarmupStats, decide
+    from gyrotherm.compensation._learnstate import LearnState
+    from gyrotherm.daemon._learn_store import LearnRecord
+    from gyrotherm.daemon._learner import progress
+    from gyrotherm.sim._life import life
+    from learnkit import CONFIG, EST
+
+    stats = [WarmupStats.from_features(features(r, EST)) for r in life(4, seed=5)]
+    state = LearnState(("x", "y", "z"))
+    for w in stats[:3]:
+        state.add(w)
+    record = LearnRecord("car", "imu0", state,
+                         decision=decide(stats[:3], None, ("x", "y", "z")).to_dict())
+    config = LearnConfig(min_warmups=3, min_rest_s=CONFIG.min_rest_s,
+                         warmup_window_s=CONFIG.warmup_window_s, min_span_c=1.0)
+    before = progress(record, config, adopted=False).status
+    assert before == f"learning: {record.decision['reasons'][-1]}"  # type: ignore[index]
+    state.add(stats[3])  # the fourth warm-up, not decided on yet
+    assert progress(record, config, adopted=False).status == "learning: validating"

@@ -424,9 +424,9 @@ def progress(record: store.LearnRecord, config: LearnConfig, *, adopted: bool,
         status = f"learning: need {need} more warm-up{'s' if need > 1 else ''} at rest"
     elif span < config.min_span_c:
         status = f"learning: span {span:.1f} °C < {config.min_span_c:g} °C"
-    elif d.get("reasons"):
+    elif d.get("reasons") and d.get("warmups") == len(ws):
         status = f"learning: {d['reasons'][-1]}"
-    else:
+    else:  # no decision yet on these warm-ups (the worker is on it): not the last one's
         status = "learning: validating"
     if last_left_out:
         status += (f"; last power-on left out: {last_left_out} "
