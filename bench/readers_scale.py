@@ -5,7 +5,7 @@
     python bench/readers_scale.py --keep-dir /tmp/readers      # reuse the generated logs
 
 Per format, one log of one gyro with N samples at 1 kHz (N = 3.6·10⁶ is an hour), the
-bias of the independent generator (``gyrotherm.analysis._synth``, seeded) in rad/s and
+bias of the independent generator (``gyrotherm.analysis.synth._synth``, seeded) in rad/s and
 its temperature readout, written with each format's own layout and not by gyrotherm:
 
 * ``ulog``: PX4 ULog, ``sensor_gyro`` messages (the fields of PX4's ``sensor_gyro``

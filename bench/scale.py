@@ -5,7 +5,7 @@
     python bench/scale.py --keep-dir /tmp/scale    # reuse generated files between runs
 
 Per row count N, three run files of N rows each are generated (seeded; the
-independent generator ``gyrotherm.analysis._synth`` at 1 kHz with three rate
+independent generator ``gyrotherm.analysis.synth._synth`` at 1 kHz with three rate
 axes, a temperature readout refreshed every 40 ms in 0.0625 °C steps: a 1-hour
 1 kHz flight log has N = 3.6·10⁶ rows per IMU; below 6·10⁵ rows the run lasts the
 generator's minimum of 600 s at N / 600 s Hz). Then, each as a child process:
@@ -45,7 +45,7 @@ CHUNK_ROWS = 200_000
 
 def write_log(path: Path, n_rows: int, *, seed: int) -> None:
     """A three-axis 1 kHz run file of ``n_rows`` rows, written in chunks (no giant string)."""
-    from gyrotherm.analysis._synth import SynthConfig, synth_run
+    from gyrotherm.analysis.synth._synth import SynthConfig, synth_run
 
     duration_s = max(MIN_DURATION_S, n_rows / RATE_HZ)
     cfg = SynthConfig(rate_hz=n_rows / duration_s, duration_s=duration_s,

@@ -5,7 +5,7 @@
 
 Per case (what is injected) × condition (sample rate, temperature readout, number
 of runs) × seed, one device of the independent generator
-(:func:`gyrotherm.analysis._synth_variants.variant_runs`: :func:`synth_runs` plus
+(:func:`gyrotherm.analysis.synth._variants.variant_runs`: :func:`synth_runs` plus
 the off-catalogue shapes), 6000-s runs; :func:`diagnose` (no simulator replay) is
 not told what was injected. Cases: nothing; each catalogued effect in the
 generator's own form (which already differs from the catalogue's: two-node
@@ -56,8 +56,8 @@ from typing import Any
 
 from gyrotherm.analysis import SynthConfig, diagnose
 from gyrotherm.analysis._intervals import bootstrap_quantile, wilson
-from gyrotherm.analysis._synth_variants import VariantTruth, variant_runs
 from gyrotherm.analysis._unexplained import Unexplained
+from gyrotherm.analysis.synth._variants import VariantTruth, variant_runs
 
 DEV_SEEDS = (1, 2, 3, 4, 5, 6, 101, 102, 103, 104, 105)
 """Development seeds: 1, 2 the original sweep's, 3–6 seen since (the issue-19 review

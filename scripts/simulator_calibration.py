@@ -5,13 +5,13 @@ src/gyrotherm/sim/_profiles.py stores. Seeded; several minutes on one core:
 
     PYTHONPATH=src nice .venv/bin/python scripts/simulator_calibration.py
 
-Tang et al. 2013 (printed values; gyrotherm.analysis._simcal): fit on Table 1 rows
+Tang et al. 2013 (printed values; gyrotherm.analysis.simcal._calibrate): fit on Table 1 rows
 5/20/40/60 min and Table 2's "t2 60 min", held out: rows 10/30/50 and Table 2's
 other columns. A spread hypothesis that misses one of its fit-set targets by more
 than 25 % is rejected (fit set only); each parameter of the calibration is then
-compared with its nulls on the held-out statistics (gyrotherm.analysis._simcal_nulls)
+compared with its nulls on the held-out statistics (gyrotherm.analysis.simcal._nulls)
 and reverted to the default unless it beats all of them. BMI270
-(gyrotherm.analysis._simcal_bmi): fit on one session, score on the other.
+(gyrotherm.analysis.simcal._bmi): fit on one session, score on the other.
 """
 
 from __future__ import annotations
@@ -23,7 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrotherm.analysis._simcal import (
+from gyrotherm.analysis.simcal._bmi import AXES, cross_session_tests, fit_bmi, load_plateaus
+from gyrotherm.analysis.simcal._calibrate import (
     DEFAULTS,
     HYPOTHESES,
     TOLERANCE,
@@ -33,8 +34,7 @@ from gyrotherm.analysis._simcal import (
     held_out_error,
     score_tang,
 )
-from gyrotherm.analysis._simcal_bmi import AXES, cross_session_tests, fit_bmi, load_plateaus
-from gyrotherm.analysis._simcal_nulls import MARGIN_SE, MIN_MARGIN, NullTest, tang_null_tests
+from gyrotherm.analysis.simcal._nulls import MARGIN_SE, MIN_MARGIN, NullTest, tang_null_tests
 from gyrotherm.sim import ChamberModel, GyroParams
 from gyrotherm.sim._profiles import get_profile
 

@@ -19,7 +19,7 @@ SUFFIX = {"ulog": ".ulg", "dataflash": ".bin", "mcap": ".mcap"}
 
 def signal(n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Time (µs since boot), temperature (°C) and three rates (rad/s, shape (n, 3))."""
-    from gyrotherm.analysis._synth import SynthConfig, synth_run
+    from gyrotherm.analysis.synth._synth import SynthConfig, synth_run
 
     duration_s = max(600.0, n / RATE_HZ)
     cfg = SynthConfig(rate_hz=n / duration_s, duration_s=duration_s,

@@ -13,7 +13,7 @@ from gyrotherm.analysis._effects import ExtendedModel, design, effect_params
 from gyrotherm.analysis._prep import Prepared, characterise
 from gyrotherm.analysis._score import Selector, integrated_time
 from gyrotherm.analysis._stats import gauss_markov_fit, heating_minus_cooling
-from gyrotherm.analysis._synth import SynthConfig, synth_run
+from gyrotherm.analysis.synth._synth import SynthConfig, synth_run
 from gyrotherm.codecs import Run
 from gyrotherm.compensation import Scaling
 from gyrotherm.sim import ChamberProfile, GyroParams, simulate

@@ -9,7 +9,7 @@ from __future__ import annotations
 import pytest
 
 from gyrotherm.analysis import SCHEMA, SynthConfig, diagnose, synth_runs
-from gyrotherm.analysis._synth import SynthTruth
+from gyrotherm.analysis.synth._synth import SynthTruth
 from gyrotherm.sim import chamber_runs
 
 #: parameters whose estimates must fall within 30 % of the truth

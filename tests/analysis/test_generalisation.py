@@ -19,7 +19,7 @@ from gyrotherm.analysis import SynthConfig, diagnose
 from gyrotherm.analysis._prep import Prepared, Readout
 from gyrotherm.analysis._resolve import LagLimit, drop_unresolved_lag, lag_limit
 from gyrotherm.analysis._score import Selector
-from gyrotherm.analysis._synth_variants import shape_bias, stop_operator, variant_runs
+from gyrotherm.analysis.synth._variants import shape_bias, stop_operator, variant_runs
 from gyrotherm.codecs import Run
 from gyrotherm.compensation import Scaling
 

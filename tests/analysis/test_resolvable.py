@@ -20,7 +20,7 @@ import pytest
 from gyrotherm.analysis import SynthConfig, diagnose
 from gyrotherm.analysis._intervals import bootstrap_quantile, wilson
 from gyrotherm.analysis._resolution import Resolution, step_slope_per_s
-from gyrotherm.analysis._synth_variants import variant_runs
+from gyrotherm.analysis.synth._variants import variant_runs
 
 FIRST_EVAL_SEEDS = (101, 102, 103, 104, 105)
 """Fixed at commit ec6247e, run once at 7d58088 (docs/findings.md §6); development seeds since."""

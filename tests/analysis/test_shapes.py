@@ -20,13 +20,13 @@ import pytest
 
 from gyrotherm._errors import ConfigError
 from gyrotherm.analysis import Diagnosis, SynthConfig, diagnose
-from gyrotherm.analysis._synth_variants import (
+from gyrotherm.analysis._where import segments, support_span
+from gyrotherm.analysis.synth._variants import (
     VariantTruth,
     shape_bias,
     stop_operator,
     variant_runs,
 )
-from gyrotherm.analysis._where import segments, support_span
 
 SHAPE_DEV_SEEDS = (31, 32, 33, 34, 35, 36)
 SHAPE_EVAL_SEEDS = (301, 302, 303, 304, 305)

@@ -18,14 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gyrotherm.analysis._simcal import (
-    FIT_ROWS,
-    TOLERANCE,
-    default_dt_ratio,
-    held_out_error,
-    score_tang,
-)
-from gyrotherm.analysis._simcal_bmi import (
+from gyrotherm.analysis.simcal._bmi import (
     AXES,
     FS_HZ,
     cross_session_tests,
@@ -34,8 +27,15 @@ from gyrotherm.analysis._simcal_bmi import (
     simulate_plateau,
     sine_amplitude,
 )
-from gyrotherm.analysis._simcal_nulls import run_null_tests
-from gyrotherm.analysis._simcal_tang import (
+from gyrotherm.analysis.simcal._calibrate import (
+    FIT_ROWS,
+    TOLERANCE,
+    default_dt_ratio,
+    held_out_error,
+    score_tang,
+)
+from gyrotherm.analysis.simcal._nulls import run_null_tests
+from gyrotherm.analysis.simcal._tang import (
     TANG_FIG6,
     TANG_TABLE1,
     TANG_TABLE2,

@@ -11,8 +11,8 @@ import pytest
 
 from gyrotherm.analysis import Diagnosis, SynthConfig, diagnose
 from gyrotherm.analysis._diagnose import export_calibration
-from gyrotherm.analysis._synth_variants import variant_runs
 from gyrotherm.analysis._unexplained import hats, steepest_span
+from gyrotherm.analysis.synth._variants import variant_runs
 from gyrotherm.codecs import Run
 
 CFG = SynthConfig(duration_s=6000.0, rate_hz=10.0)

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from gyrotherm.analysis import SynthConfig, synth_runs
-from gyrotherm.analysis._synth import SynthTruth
+from gyrotherm.analysis.synth._synth import SynthTruth
 from gyrotherm.cli import main
 from gyrotherm.codecs import FrameEncoder, Run, write_candump, write_run
 from gyrotherm.sim import frames_from_run

@@ -1,5 +1,5 @@
 """Extended models end to end through the CLI: ``fit --effects`` recovers an effect
-injected by the independent generator (``analysis._synth``, not gyrotherm's
+injected by the independent generator (``analysis.synth._synth``, not gyrotherm's
 simulator) and the version-2 calibration beats the paper one on a held-out run
 under ``evaluate``; ``diagnose --calibration`` writes a complete calibration."""
 

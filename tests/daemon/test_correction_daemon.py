@@ -22,7 +22,7 @@ import pytest
 
 from gyrotherm.analysis import SynthConfig, diagnose
 from gyrotherm.analysis._diagnose import export_calibration
-from gyrotherm.analysis._synth_variants import variant_runs
+from gyrotherm.analysis.synth._variants import variant_runs
 from gyrotherm.codecs import FrameDecoder, FrameEncoder, RateSample, Run
 from gyrotherm.codecs._wire_decode import decode_rate
 from gyrotherm.compensation import Calibration

@@ -1,6 +1,6 @@
 """Measured against simulated: residual statistics over several simulator replays.
 
-The simulator is calibrated to the runs (:mod:`._simulate`): its noise
+The simulator is calibrated to the runs (:mod:`.simcal._simulate`): its noise
 (white, Gauss–Markov, switch-on offsets) once, on the residuals of the
 extended model — the paper model's residuals hold any effect it misses, which
 a noise fit would absorb (a drift becomes a slow Gauss–Markov process) and so
@@ -48,7 +48,6 @@ from gyrotherm._errors import ConfigError
 from gyrotherm.analysis._effects import add_bias
 from gyrotherm.analysis._prep import Prepared, Readout, characterise, estimator_for, prepare
 from gyrotherm.analysis._score import Selector
-from gyrotherm.analysis._simulate import SimCalibration, calibrate, replay_noise
 from gyrotherm.analysis._stats import (
     gauss_markov_fit,
     replay_spread,
@@ -57,6 +56,7 @@ from gyrotherm.analysis._stats import (
     z_score,
     z_threshold,
 )
+from gyrotherm.analysis.simcal._simulate import SimCalibration, calibrate, replay_noise
 from gyrotherm.codecs import Run
 from gyrotherm.compensation import Scaling
 

@@ -8,7 +8,7 @@
    the replays' spread: z = (measured − replay mean)/replay std, sorted by |z|,
    significant beyond a threshold set for the number of replays; statistics
    the runs cannot show are listed in ``notes`` (:mod:`._compare`,
-   :mod:`._simulate`, :mod:`._stats`).
+   :mod:`.simcal._simulate`, :mod:`._stats`).
 3. Select effects (forward selection with held-out and penalised criteria);
    leave out a ``thermal_lag`` the temperature readout cannot resolve
    (:mod:`._resolve`: below τ_min, or no better than on readout replays

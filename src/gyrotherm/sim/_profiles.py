@@ -3,7 +3,7 @@
 A :class:`SimProfile` is a gyro and a chamber plus where their values come from. The
 ``default`` profile is ``GyroParams()``/``ChamberModel()`` unchanged (demo output,
 README tables and tests depend on it). The calibrated profiles hold what
-``scripts/simulator_calibration.py`` (``gyrotherm.analysis._simcal*``; docs/findings.md
+``scripts/simulator_calibration.py`` (``gyrotherm.analysis.simcal._calibrate*``; docs/findings.md
 §7) fitted on part of the measurements AND kept because it beat its nulls (default,
 zero, sign flip) on the held-out part; every other fitted value is reverted to the
 default:
@@ -86,7 +86,7 @@ def _tang2013() -> SimProfile:
         "tang2013", gyro, ChamberModel(), 1.0,
         fit_set="Tang et al. 2013 Table 1 rows 5/20/40/60 min, Table 2 't2 60 min', Fig. 6",
         held_out="Table 1 rows 10/30/50 min, Table 2 't2 5 min', 't2 50 min', 'paper'",
-        provenance="scripts/simulator_calibration.py (gyrotherm.analysis._simcal); only "
+        provenance="scripts/simulator_calibration.py (gyrotherm.analysis.simcal._calibrate); only "
                    "the white noise beat its nulls, the rest is the default")
 
 
@@ -105,7 +105,7 @@ def _bmi270() -> SimProfile:
         "bmi270", gyro, ChamberModel(), 50.0,
         fit_set="BMI270 plateaus (Yerramsetti 2026, MIT): one whole session",
         held_out="the other session (cold → hot, hot → cold)", sessions=sessions,
-        provenance="scripts/simulator_calibration.py (gyrotherm.analysis._simcal_bmi); "
+        provenance="scripts/simulator_calibration.py (gyrotherm.analysis.simcal._bmi); "
                    "sessions: descriptions of each session, not validated")
 
 

@@ -267,7 +267,7 @@ def synth_run(cfg: SynthConfig, *, seed: int, name: str = "", truth_seed: int = 
         rates_dps={"x": rate},
         chamber_c=chamber,
         true_bias_dps={"x": true_bias},
-        metadata={"generator": "gyrotherm.analysis._synth", "seed": str(seed),
+        metadata={"generator": "gyrotherm.analysis.synth._synth", "seed": str(seed),
                   "switch_on_offset_dps": repr(offset)},
         extra={"true_temperature_c": np.interp(t, grid, die),
                "true_delta_t_c": np.interp(t, grid, grad)},

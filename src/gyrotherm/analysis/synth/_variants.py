@@ -46,7 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gyrotherm._errors import ConfigError
-from gyrotherm.analysis._synth import SynthConfig, SynthTruth, synth_runs
+from gyrotherm.analysis.synth._synth import SynthConfig, SynthTruth, synth_runs
 from gyrotherm.codecs import Run
 
 FloatArray = NDArray[np.float64]

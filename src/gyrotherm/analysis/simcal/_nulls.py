@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyrotherm.analysis._simcal import (
+from gyrotherm.analysis.simcal._calibrate import (
     DEFAULTS,
     PARAMETERS,
     TangFit,

@@ -12,7 +12,7 @@ statistic that separates amplitude from correlation time):
 
 1. ΔT sensitivity: the true ΔT terms (dT, T·dT, every axis) scaled by
    k = mean(r_i, fit rows) / r_default, r = (a3 + a4·T)/(a2 + 2·a1·T) at 15 °C
-   (:mod:`._simcal_tang`); r of a noise-free per-run fit is k·r_default.
+   (:mod:`._tang`); r of a noise-free per-run fit is k·r_default.
 2. What spreads r: the std of r over heating times and seeds matches the fit rows'
    std σ* (ddof 1); its square grows above a floor σ₀² (the other noise) as the
    square of the spread term. Two hypotheses (:func:`fit_tang`): slow Gauss–Markov
@@ -20,7 +20,7 @@ statistic that separates amplitude from correlation time):
    sensitivity (closed form).
 3. White noise N (°/√h): the "t2 60 min" RMS on the validation run matches;
    RMS² = σ_w² + rest with σ_w = N/60·√f_s.
-4. Chamber bow vs ramp rate through Fig. 6 (:func:`._simcal_tang.fit_bow`).
+4. Chamber bow vs ramp rate through Fig. 6 (:func:`._tang.fit_bow`).
 
 Scores (:func:`score_tang`, seeds disjoint from the fit seeds): per held-out
 statistic an error e (0 = exact). e = |ln(sim/measured)| for positive statistics,
@@ -29,7 +29,7 @@ scatter e = |ln z|, z = RMS over rows of (r_i − μ)/σ with μ, σ the simulat
 and std of r over the same heating times and the seeds (z = 1: the rows look like
 draws from the simulator). A hypothesis that misses one of its fit-set targets by
 more than :data:`TOLERANCE` is rejected (:func:`fit_misses`); each parameter is
-then compared with its nulls on the held-out errors (:mod:`._simcal_nulls`).
+then compared with its nulls on the held-out errors (:mod:`._nulls`).
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gyrotherm._errors import ConfigError
-from gyrotherm.analysis._simcal_tang import (
+from gyrotherm.analysis.simcal._tang import (
     HEATING_MIN,
     T_READ_C,
     TANG_FIG6,

@@ -16,7 +16,7 @@ Scored on the other session's axis (simulated: isothermal plateaus of the same
 length, quantised to q, one per seed): per seed e = |ln(sim/measured)| of the std and
 of the Allan deviation at τ = 0.1, 1 s, and the share of the scored axis' lines
 (same rule) the simulation does not show within ±0.5 Hz; the axis' error per seed
-is the mean of these. Null comparisons (:mod:`._simcal_nulls`): the white level
+is the mean of these. Null comparisons (:mod:`._nulls`): the white level
 against the default N and zero, the lines against none (white refitted to the whole
 variance).
 """
@@ -32,8 +32,8 @@ import numpy as np
 from scipy.signal import welch
 
 from gyrotherm._errors import ConfigError
-from gyrotherm.analysis._simcal_nulls import NullTest, run_null_tests
 from gyrotherm.analysis._stats import allan_deviation
+from gyrotherm.analysis.simcal._nulls import NullTest, run_null_tests
 from gyrotherm.sim import ChamberModel, ChamberProfile, GyroParams, simulate
 from gyrotherm.sim._lines import SpectralLine
 
