@@ -3,6 +3,7 @@ selected per axis (independent generator, seeded)."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -73,3 +74,36 @@ def test_add_bias_equals_the_online_kernel_on_uniform_and_jittered_grids() -> No
     jittered_bias = model.bias(jittered.time_s, temp, dtemp)
     assert np.max(np.abs(added - jittered_bias)) < 1e-12  # (rate + b) − rate: rounding
     assert np.max(np.abs(jittered_bias - want)) > 1e-6  # the kernel saw the jitter
+
+
+@pytest.mark.parametrize("variable", ["temperature_c", "delta_t_c", "time_since_power_on_s"])
+def test_the_simulators_replay_applies_the_correction_as_the_vehicle_does(
+        variable: str) -> None:
+    """add_bias with a calibration's ``correction`` adds, on the simulator's truth, what
+    the vehicle's online kernel adds for that correction to 1e-9 (knots inside and the
+    run's range beyond them: clamped, constant outside); without it, nothing changes."""
+    from gyrotherm.analysis import add_bias
+    from gyrotherm.analysis._effects import BASE_COLUMNS, ExtendedModel
+    from gyrotherm.compensation import Scaling
+    from gyrotherm.compensation._correction import Correction
+    from gyrotherm.compensation._effects import Effects, EffectsKernel
+    from gyrotherm.sim import ChamberProfile, GyroParams, simulate
+
+    profile = ChamberProfile.from_pairs([(0, 20), (600, 20), (1500, 45), (2100, 45),
+                                         (3000, 25), (3600, 25)])
+    run = simulate(profile, name="s", gyro=GyroParams().quiet(), rate_hz=5.0, seed=2)
+    model = ExtendedModel(Scaling(30.0, 15.0, 5.0), {}, BASE_COLUMNS,
+                          (0.01, 0.03, 0.02, 0.002), intercept_dps=0.1)
+    temp, dtemp = run.extra["true_temperature_c"], run.extra["true_delta_t_c"]
+    v = {"temperature_c": temp, "delta_t_c": dtemp, "time_since_power_on_s": run.time_s}[
+        variable]
+    lo, hi = np.percentile(v, [10, 90])  # the run goes beyond the knots on both sides
+    knots = tuple(float(k) for k in np.linspace(lo, hi, 9))
+    corr = Correction(variable, knots, tuple(0.03 * math.sin(1.7 * i) for i in range(9)))
+    vehicle = EffectsKernel(Effects(correction=corr)).series(run.time_s, temp, dtemp).bias_dps
+    plain = add_bias(run, model, "x")
+    corrected = add_bias(run, model, "x", correction=corr)
+    added = corrected.true_bias_dps["x"] - plain.true_bias_dps["x"]
+    assert np.max(np.abs(added - vehicle)) < 1e-9 and np.ptp(vehicle) > 0.04
+    assert np.max(np.abs((corrected.rates_dps["x"] - plain.rates_dps["x"]) - added)) < 1e-12
+    assert np.array_equal(plain.rates_dps["y"], corrected.rates_dps["y"])

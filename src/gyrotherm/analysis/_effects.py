@@ -54,6 +54,7 @@ from scipy.signal import lfilter
 from gyrotherm._errors import CalibrationError
 from gyrotherm.codecs import Run
 from gyrotherm.compensation import Scaling, Term, get_model
+from gyrotherm.compensation._correction import Correction
 from gyrotherm.compensation._effects import MIN_TRANSITION_C, Effects, EffectsKernel
 
 FloatArray = NDArray[np.float64]
@@ -345,8 +346,24 @@ class ExtendedModel:
         return np.asarray(base + extra, dtype=np.float64)
 
 
-def add_bias(run: Run, model: ExtendedModel, axis: str) -> Run:
-    """The simulator extension: ``run`` with ``model``'s bias added to axis ``axis``.
+def correction_bias(correction: Correction, time_s: FloatArray, temperature_c: FloatArray,
+                    delta_t_c: FloatArray) -> FloatArray:
+    """A deployable ``correction`` (calibration v2, :mod:`gyrotherm.compensation._correction`)
+    over a series, °/s: its linear spline at the variable it names (T, ΔT, or the time
+    since power-on ``time_s``, negative times as 0 as the kernel takes them), constant
+    outside its knots. ``np.interp`` is that spline; equal to the kernel's
+    :meth:`Correction.value` to rounding."""
+    v = {"temperature_c": temperature_c, "delta_t_c": delta_t_c,
+         "time_since_power_on_s": np.maximum(np.asarray(time_s, dtype=np.float64), 0.0)
+         }[correction.variable]
+    return np.interp(np.asarray(v, dtype=np.float64), correction.knots, correction.values_dps)
+
+
+def add_bias(run: Run, model: ExtendedModel, axis: str, *,
+             correction: Correction | None = None) -> Run:
+    """The simulator extension: ``run`` with ``model``'s bias added to axis ``axis``, and
+    with the ``correction`` a calibration v2 carries for that axis when given (the
+    diagnosis' unexplained structure, deployed: :func:`correction_bias`).
 
     Evaluated on the simulator's truth columns ``true_temperature_c`` and
     ``true_delta_t_c`` (so effects act on the die, as the physics would), from the
@@ -369,6 +386,8 @@ def add_bias(run: Run, model: ExtendedModel, axis: str) -> Run:
         b = np.asarray(a @ np.asarray(model.coefficients) + model.intercept_dps)
     else:
         b = model.bias(run.time_s, temp, dtemp)
+    if correction is not None:
+        b = b + correction_bias(correction, run.time_s, temp, dtemp)
     rates = dict(run.rates_dps)
     rates[axis] = rates[axis] + b
     truth = dict(run.true_bias_dps)
