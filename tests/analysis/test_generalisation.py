@@ -6,10 +6,7 @@ the injected truth. Seeds fixed before any result was seen."""
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
 from types import ModuleType
 
 import numpy as np
@@ -23,7 +20,6 @@ from gyrotherm.analysis.synth._variants import shape_bias, stop_operator, varian
 from gyrotherm.codecs import Run
 from gyrotherm.compensation import Scaling
 
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "generalisation_sweep.py"
 COARSE = SynthConfig(duration_s=6000.0, readout_lsb_c=1.0, readout_period_s=1.3)
 
 
@@ -128,16 +124,6 @@ def test_the_lag_a_coarse_readout_alone_produces_is_not_named() -> None:
     d = diagnose(runs, simulate=False)
     assert "thermal_lag" not in {f.effect for f in d.findings}
     assert any("thermal_lag not reported as a physical finding" in n for n in d.notes)
-
-
-@pytest.fixture(scope="module")
-def sweep() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("generalisation_sweep", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["generalisation_sweep"] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.mark.parametrize(("case", "condition"), [

@@ -8,10 +8,7 @@ developed on DEV_SEEDS. The corner condition is the sweep's coarsest: 10 Hz,
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
-from pathlib import Path
 from types import ModuleType
 
 import numpy as np
@@ -27,19 +24,8 @@ FIRST_EVAL_SEEDS = (101, 102, 103, 104, 105)
 EVAL_SEEDS = (201, 202, 203, 204, 205)
 """Fixed (the commit adding this line) before any result on them was seen."""
 DEV_SEEDS = (1, 2, 3, 4, 5, 6, *FIRST_EVAL_SEEDS)
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "generalisation_sweep.py"
 CORNER = 3
 """Index of the 1 °C / 1.3 s / 3-run condition in the sweep's CONDITIONS."""
-
-
-@pytest.fixture(scope="module")
-def sweep() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("generalisation_sweep", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["generalisation_sweep"] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_eval_seeds_are_disjoint_from_development_seeds(sweep: ModuleType) -> None:

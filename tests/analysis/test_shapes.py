@@ -9,10 +9,7 @@ developing (tests use SHAPE_DEV_SEEDS only)."""
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
 from types import ModuleType
 
 import numpy as np
@@ -31,17 +28,6 @@ from gyrotherm.analysis.synth._variants import (
 SHAPE_DEV_SEEDS = (31, 32, 33, 34, 35, 36)
 SHAPE_EVAL_SEEDS = (301, 302, 303, 304, 305)
 """Fixed (the commit adding this line) before any result on them was seen."""
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "generalisation_sweep.py"
-
-
-@pytest.fixture(scope="module")
-def sweep() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("generalisation_sweep", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["generalisation_sweep"] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
