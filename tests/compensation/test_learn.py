@@ -193,3 +193,94 @@ def test_a_learnt_calibration_is_judged_on_warmups_it_never_saw(
     for a in AXES:
         assert heldout_bias_rms(held, a, basis_slopes(new, a)) < \
             0.5 * heldout_bias_rms(held, a, basis_slopes(flat, a))
+
+
+def _true_spread(fs: list[RunFeatures], axis: str) -> float:
+    """RMS of the simulator's true bias about each warm-up's own mean: the bias error no
+    compensation leaves once the boot-time zero took the offset."""
+    sq, n = 0.0, 0
+    for f in fs:
+        b = f.true_bias_dps[axis][warmup_rows(f)]
+        sq += float(np.sum((b - b.mean()) ** 2))
+        n += len(b)
+    return math.sqrt(sq / n)
+
+
+@pytest.mark.parametrize("dt_scale", [1.0, 0.0778])
+def test_the_reducible_bias_error_of_no_compensation_is_the_true_thermal_spread(
+        dt_scale: float) -> None:
+    """With the white noise alone taken out, the gyro's slow noise (bias instability, rate
+    random walk) counts as bias error; what the model class leaves in sample takes it out
+    too. Against the simulator's truth, on a gyro whose thermal bias is large and on one
+    whose bias is of the size of its slow noise (ΔT terms × 0.0778, findings §8)."""
+    from gyrotherm.compensation._learn import floor_ms, noise_var
+    from gyrotherm.sim._profiles import scaled_dt
+
+    gyro = scaled_dt(LIFE_GYRO, dt_scale)
+    fs = [features(r, EST) for r in life(10, seed=21, gyro=gyro)]
+    stats = [WarmupStats.from_features(f) for f in fs]
+    for a in AXES:
+        truth = _true_spread(fs, a)
+        est = heldout_bias_rms(stats, a, np.zeros(4))
+        # 0.0012 °/s: a fifth of the simulator's bias instability (20 °/h)
+        assert est == pytest.approx(truth, rel=0.15, abs=0.0012), a
+        if dt_scale < 1:  # white noise alone taken out: the slow noise is counted as bias
+            old = math.sqrt(max(heldout_rms(stats, a, np.zeros(4)) ** 2
+                                - noise_var(stats, a), 0.0))
+            assert floor_ms(stats, a) > noise_var(stats, a)
+            assert abs(old - truth) > 1.5 * abs(est - truth), a
+
+
+def test_extrapolation_is_validated_as_far_as_the_leave_one_out_reached(
+        feats: list[RunFeatures]) -> None:
+    """The learnt range is widened on each side by the overhang of the warm-up reaching
+    furthest past the others (hand-computed from their ranges), because decide scored it
+    with the others' slopes, unclamped, and it beat no compensation there; a held-out
+    power-on inside that widening is closer to the simulator's truth than the same
+    calibration clamped to the data's coverage."""
+    from gyrotherm.compensation._calibration import ValidRange
+    from gyrotherm.compensation._learn import validated_extension
+
+    stats = [WarmupStats.from_features(f) for f in feats[:10]]
+    lows = sorted(w.t_range_c[0] for w in stats)
+    highs = sorted(w.t_range_c[1] for w in stats)
+    below, above = validated_extension(stats, AXES)
+    assert below == pytest.approx(lows[1] - lows[0], rel=1e-12)
+    assert above == pytest.approx(highs[-1] - highs[-2], rel=1e-12)
+    assert above > 1.0  # the case below needs room
+    d = decide(stats, None, AXES)
+    cal = learnt_calibration(stats, AXES, estimator=EST, decision=d)
+    assert (cal.valid_range.t_min_c, cal.valid_range.t_max_c) == pytest.approx(
+        (lows[0] - below, highs[-1] + above))
+    assert cal.provenance["coverage_c"] == [lows[0], highs[-1]]
+    assert cal.provenance["validated_extrapolation_c"] == [below, above]
+    clamped = replace(cal, valid_range=ValidRange(lows[0], highs[-1], cal.valid_range.dt_min_c,
+                                                  cal.valid_range.dt_max_c))
+    # die ≈ ambient + 8 °C at the end: ambient so that the die ends inside the widening
+    f = features(power_on(highs[-1] + 0.6 * above - 8.0, seed=99), EST)
+    use = warmup_rows(f)
+    assert f.temperature_c[use].max() > highs[-1]
+    for a in AXES:
+        errs = []
+        for c in (cal, clamped):
+            e = (c.bias_series(a, f.temperature_c, f.delta_t_c)[0] - f.true_bias_dps[a])[use]
+            errs.append(float(np.std(e)))
+        assert errs[0] < errs[1], a
+
+
+def test_extrapolation_that_failed_its_validation_is_not_used(
+        feats: list[RunFeatures]) -> None:
+    """The hottest warm-up's thermal shape reversed (its rates carry −2× its true bias
+    variation): the others' slopes fail on it, so the hot side is clamped at the data's
+    coverage; the cold side is unaffected."""
+    from gyrotherm.compensation._learn import validated_extension
+
+    fs = list(feats[:10])
+    hot = max(range(10), key=lambda k: float(np.nanmax(fs[k].temperature_c)))
+    f = fs[hot]
+    fs[hot] = replace(f, rates_dps={a: r - 3.0 * (f.true_bias_dps[a] - f.true_bias_dps[a].mean())
+                                    for a, r in f.rates_dps.items()})
+    good = validated_extension([WarmupStats.from_features(g) for g in feats[:10]], AXES)
+    below, above = validated_extension([WarmupStats.from_features(g) for g in fs], AXES)
+    assert good[1] > 0 and above == 0.0
+    assert below == pytest.approx(good[0], rel=1e-12)
