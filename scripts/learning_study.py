@@ -105,7 +105,8 @@ def one_seed(seed: int, gyro: GyroParams = LIFE_GYRO) -> dict[str, dict[int, flo
                                         ("gyrotherm", "ardupilot", "px4", "chamber", "none")}
     for k in KS:
         d = decide(stats[:k], None, AXES) if k >= 2 else None
-        cal = learnt_calibration(stats[:k], AXES, estimator=EST) if d and d.adopt else None
+        cal = (learnt_calibration(stats[:k], AXES, estimator=EST, decision=d)
+               if d and d.adopt else None)
         out["gyrotherm"][k] = score(of_calibration(cal), held)
         out["ardupilot"][k] = score(cubic_in_t(train[0], 35.0), held)
         coldest = min(train[:k], key=lambda f: float(f.temperature_c[0]))
