@@ -15,7 +15,10 @@ the other in-process tests); the test waits for every message of one power-on be
 next. A power-off is a silence of the sensor's stamps longer than ``power_on_gap_s``
 that the wall clock must see too (otherwise the daemon takes it for a clock jump and
 learns nothing from it): before the next power-on the test lets the wall clock pass the
-same silence after the daemon received the previous one's last frame.
+same silence after the daemon received the previous one's last frame. The stamps run on
+across power-ons, as a host's clock does (SocketCAN's receive times): they start at
+HOST_CLOCK0_S, beyond the learner's 10⁶ s below which a first stamp is read as the gyro's
+own time since power-on (``gyrotherm.daemon._learner``: "The daemon's first frame").
 """
 
 from __future__ import annotations
@@ -51,6 +54,7 @@ MIN_REST_S = 180.0
 GAP_S = 1.0  # power_on_gap_s
 SILENCE_S = 1.5  # the stamps' silence between two power-ons (+ one row) > GAP_S
 AMBIENTS_C = (-5.0, 12.0, 31.0)  # start temperatures span 36 °C > min_span_c 8 °C
+HOST_CLOCK0_S = 1.7e9  # the stamps of the first power-on: a host's clock, s
 CONFIG = f"""\
 vehicle = "car"
 sensor = "imu0"
@@ -219,7 +223,7 @@ def test_daemon_learns_adopts_without_a_drop_and_keeps_it_across_a_restart(
     held_out = [power_on(a, warmup_s=HELD_OUT_S, rate_hz=RATE_HZ, seed=s, name=f"h{s}")
                 for a, s in ((3.0, 2200), (22.0, 2201))]
 
-    with Vehicle(tmp_path, channel, sensor_time_s=1000.0) as v1:
+    with Vehicle(tmp_path, channel, sensor_time_s=HOST_CLOCK0_S) as v1:
         assert v1.daemon.channels[0].calibration_id == ""  # none configured, none learnt
         learning = [v1.play(run) for run in learn_runs]
         got = v1.got

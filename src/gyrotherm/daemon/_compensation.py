@@ -114,9 +114,9 @@ class Compensation:
         self.t_on_s = math.nan  # t_on fed to the latest step, s
         self._cached: tuple[tuple[float, float, float], StatusFlags] | None = None
         self._restore: EffectsSnapshot | None = None
-        self.power_on_listener: Callable[[float, bool, bool, bool], None] | None = None
-        """Called at every power-on with (time_s, first, time_base, restored): the
-        ``[learn]`` mode (:mod:`gyrotherm.daemon._learner`)."""
+        self.power_on_listener: Callable[[float, bool, bool, bool, float], None] | None = None
+        """Called at every power-on with (time_s, first, time_base, restored,
+        receive_time_s): the ``[learn]`` mode (:mod:`gyrotherm.daemon._learner`)."""
         self.set_calibration(calibration)
 
     def set_calibration(self, calibration: Calibration | None) -> None:
@@ -209,10 +209,12 @@ class Compensation:
         self._restore = EffectsSnapshot(snapshot.power_on_s, snapshot.time_s, state,
                                         snapshot.zero, snapshot.source)
 
-    def power_on(self, time_s: float, *, first: bool, time_base: bool = False) -> None:
+    def power_on(self, time_s: float, *, first: bool, time_base: bool = False,
+                 receive_time_s: float = math.nan) -> None:
         """The gyro powered on at ``time_s`` (``first``: the daemon's first frame,
         where a saved state may be restored instead; ``time_base``: a time-base change,
-        which may be a clock step as well as a reboot: the zero starts untrusted)."""
+        which may be a clock step as well as a reboot: the zero starts untrusted;
+        ``receive_time_s``: the frame's wall-clock receive time, for the listener)."""
         snap, self._restore = self._restore, None
         if (first and snap is not None and self.compensator is not None
                 and 0.0 <= time_s - snap.time_s <= self.power_on_gap_s):
@@ -229,7 +231,7 @@ class Compensation:
                 log.log(logging.WARNING if "dropped" in what else logging.INFO,
                         "boot-time zero after the restart (%s): %s", snap.source, what)
             if self.power_on_listener is not None:
-                self.power_on_listener(time_s, first, time_base, True)
+                self.power_on_listener(time_s, first, time_base, True, receive_time_s)
             return
         if first and snap is not None:
             log.info("saved effects state not restored: first frame at %r s does not continue "
@@ -257,7 +259,7 @@ class Compensation:
                 else:
                     z.start(time_s)
         if self.power_on_listener is not None:
-            self.power_on_listener(time_s, first, time_base, False)
+            self.power_on_listener(time_s, first, time_base, False, receive_time_s)
 
     def snapshot(self) -> EffectsSnapshot | None:
         """The state to persist, None before the first step."""

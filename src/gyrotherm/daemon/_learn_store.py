@@ -9,6 +9,9 @@ The **learning state** (schema ``gyrotherm.learn-state`` version 1)::
 
     {"schema": "gyrotherm.learn-state", "version": 1, "vehicle": "veh01", "sensor": "imu0",
      "power_ons": 12, "last_time_s": 5321.5,            # sensor clock, s (null: none)
+     "last_wall_s": 1.7e9,                # wall clock that frame was received at (null)
+     "power_on_time_s": 5100.0,           # the latest power-on's stamp while the daemon
+                                          # runs (null: none, or it stopped cleanly)
      "rejected": {"motion": 2, "too_short": 1},          # warm-ups left out, by reason
      "decision": {…} | null,                              # the latest Decision.to_dict()
      "adopted": {"time_s": 1.7e9, "calibration_id": "…"} | null,
@@ -60,7 +63,7 @@ VERSION = 1
 #: Largest learning state read, bytes (256 warm-ups of three axes: about 400 kB).
 MAX_STATE_BYTES = 4 << 20
 #: Reasons a warm-up is left out (the state message's ``rejected`` keys).
-REASONS = ("motion", "too_short", "clock_jump", "restart")
+REASONS = ("motion", "too_short", "clock_jump", "restart", "missed_start")
 
 
 def state_path(state_dir: Path, vehicle: str, sensor: str) -> Path:
@@ -121,6 +124,11 @@ class LearnRecord:
     learn: LearnState
     power_ons: int = 0
     last_time_s: float = math.nan
+    last_wall_s: float = math.nan
+    """Wall-clock receive time of the frame at ``last_time_s``."""
+    power_on_time_s: float = math.nan
+    """Stamp of the latest power-on learnt or continued (a restart) while the daemon
+    runs; NaN: none, or the daemon stopped cleanly (the learner's docstring)."""
     rejected: dict[str, int] = field(default_factory=dict)
     decision: dict[str, Any] | None = None
     adopted: dict[str, Any] | None = None
@@ -131,6 +139,9 @@ class LearnRecord:
         return {"schema": SCHEMA, "version": VERSION, "vehicle": self.vehicle,
                 "sensor": self.sensor, "power_ons": self.power_ons,
                 "last_time_s": None if math.isnan(self.last_time_s) else self.last_time_s,
+                "last_wall_s": None if math.isnan(self.last_wall_s) else self.last_wall_s,
+                "power_on_time_s": (None if math.isnan(self.power_on_time_s)
+                                       else self.power_on_time_s),
                 "rejected": dict(self.rejected), "decision": self.decision,
                 "adopted": self.adopted, "config": self.config,
                 "learn": self.learn.to_dict()}
@@ -175,9 +186,13 @@ def load_record(path: Path, *, vehicle: str, sensor: str,
     power_ons = doc.get("power_ons")
     if isinstance(power_ons, bool) or not isinstance(power_ons, int) or power_ons < 0:
         raise bad("power_ons", f"expected a count, got {power_ons!r:.40}")
-    last = doc.get("last_time_s")
-    if last is not None and (isinstance(last, bool) or not isinstance(last, int | float)):
-        raise bad("last_time_s", f"expected a number or null, got {last!r:.40}")
+    times = {}
+    for key in ("last_time_s", "last_wall_s", "power_on_time_s"):  # absent: null
+        v = doc.get(key)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)
+                              or not math.isfinite(v)):
+            raise bad(key, f"expected a finite number or null, got {v!r:.40}")
+        times[key] = math.nan if v is None else float(v)
     rejected = doc.get("rejected")
     if not (isinstance(rejected, dict) and set(rejected) <= set(REASONS) and all(
             isinstance(v, int) and not isinstance(v, bool) and v >= 0
@@ -194,8 +209,8 @@ def load_record(path: Path, *, vehicle: str, sensor: str,
     learn = LearnState.from_dict(doc.get("learn"), source=f"{src}: learn")
     if learn.axes != axes:
         raise bad("learn.axes", f"{list(learn.axes)}, not this IMU's {list(axes)}")
-    return LearnRecord(vehicle, sensor, learn, power_ons,
-                       math.nan if last is None else float(last), dict(rejected),
+    return LearnRecord(vehicle, sensor, learn, power_ons, times["last_time_s"],
+                       times["last_wall_s"], times["power_on_time_s"], dict(rejected),
                        doc.get("decision"), adopted, doc.get("config"))
 
 

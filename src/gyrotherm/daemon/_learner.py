@@ -17,10 +17,36 @@ rest after ``SETTLE_S``, else left out as ``motion`` (motion ended it) or
 ``too_short``. Not learnt at all, and counted: a warm-up cut by a **clock jump** (a
 time-base change of the sensor's stamps, or a silence the wall clock did not see:
 ``clock_jump``; what follows the jump is not a power-on the daemon can trust either,
-so nothing is collected until the next real one), and a start that continues the
-previous run (the daemon restarted while the gyro kept running: ``restart``; the
-stamps of the first frame continue the saved ``last_time_s`` within ``power_on_gap_s``,
-or a saved effects state was taken back).
+so nothing is collected until the next real one), and a daemon start that is not the
+start of a warm-up it saw (``restart``, ``missed_start``; below).
+
+**The daemon's first frame.** The pipeline takes the first accepted temperature frame
+after the daemon starts as a power-on (unless a saved effects state is taken back: the
+gyro kept running, ``restart``). The learner learns it only when it is one the daemon
+saw from its start. The stamps are the CAN frames' time stamps (the DBC has no time
+signal): on SocketCAN the host's receive time (wall clock), from a log, the virtual bus
+or the simulator the sender's, there the gyro's own time since its power-on (the
+simulator's run time). Which one, the stamp's size says (``codecs._candump_run``'s
+convention, :data:`DEVICE_CLOCK_LIMIT_S`):
+
+* **Stamps below 10⁶ s are the gyro's time since its power-on**, so the first stamp t
+  *is* the time since power-on and the rule is about it, not about how recently the
+  state was saved (a ``kill -9`` saves nothing; saves come every :data:`SAVE_PERIOD_S`
+  while collecting). t ≤ :data:`FIRST_FRAME_MAX_S`: a power-on seen from its start,
+  learnt. Later: not learnt, as ``restart`` when the saved run goes on (t ≥ the saved
+  ``last_time_s`` and the stamps advanced at least as much as the wall clock since that
+  frame, less ``power_on_gap_s``: the gyro's clock did not restart), else as
+  ``missed_start`` (the gyro power-cycled while the daemon was down, or ran before a
+  first start: the warm-up's first part, its start temperature and its t_on are
+  unknown).
+* **Larger stamps (a host's clock) say nothing about the gyro's power-on.** ``restart``
+  when the first stamp continues the saved ``last_time_s`` within ``power_on_gap_s``
+  (every frame updates it; a stop saves it, a ``kill -9`` does not), or, after a
+  daemon that did not stop (killed, crashed, the power cut: the state still holds the
+  latest power-on's stamp ``power_on_time_s``, saved at once and cleared by a clean
+  stop), when it is within ``warmup_window_s`` of that power-on: a restart, or a power
+  cycle the daemon could not see, inside a warm-up it cannot learn either way. Else a
+  power-on, learnt.
 
 **Deciding.** A used warm-up is added to the :class:`LearnState` (at most 256, the
 oldest dropped), the state file is written, and :func:`decide` runs on a worker thread
@@ -65,9 +91,15 @@ from gyrotherm.estimators import EstimatorConfig, TemperatureEstimate
 
 log = logging.getLogger("gyrotherm.daemon")
 
-#: Seconds (monotonic) between saves of the learning state while a warm-up is collected
-#: (``last_time_s`` for the restart check), besides those at its end and at shutdown.
+#: Seconds (monotonic) between saves of the learning state while a warm-up is collected,
+#: besides those at its power-on, at its end and at shutdown.
 SAVE_PERIOD_S = 60.0
+#: Stamps in [0, this) are the gyro's own time since its power-on, larger ones a host's
+#: clock (the convention of :data:`gyrotherm.codecs._candump_run.POWER_ON_LIMIT_S`).
+DEVICE_CLOCK_LIMIT_S = 1e6
+#: The latest a first frame on the gyro's own clock may be stamped and still start a
+#: warm-up the daemon saw (rows are used from SETTLE_S after power-on), s.
+FIRST_FRAME_MAX_S = SETTLE_S
 #: Most rows one rest block holds before it is judged early (memory bound).
 MAX_BLOCK_ROWS = 20_000
 _NAN3 = (math.nan, math.nan, math.nan)
@@ -194,34 +226,73 @@ class Learner:
             except Exception:
                 log.exception("%s: learning decision failed at shutdown", self.sensor)
         self.poll()
+        self.record.power_on_time_s = math.nan  # a clean stop: last_time_s is exact
         self._save()
         if self._pool is not None:
             self._pool.shutdown(wait=True)
 
     # --- the frame thread's hooks ----------------------------------------------------------
 
-    def power_on(self, time_s: float, first: bool, time_base: bool, restored: bool) -> None:
-        """The pipeline took a power-on at sensor time ``time_s`` (module docstring)."""
+    def power_on(self, time_s: float, first: bool, time_base: bool, restored: bool,
+                 receive_time_s: float = math.nan) -> None:
+        """The pipeline took a power-on at sensor time ``time_s``, received at wall-clock
+        ``receive_time_s`` (module docstring: which power-ons are learnt)."""
         self._close("clock_jump" if time_base else "power_on")
         was_first, self._first = self._first, False
-        last = self.record.last_time_s
-        skip = ("restart" if restored or (was_first and 0.0 <= time_s - last <= self._gap_s)
-                else "clock_jump" if time_base else "")
+        if restored:
+            skip = "restart"
+        elif time_base:
+            skip = "clock_jump"
+        elif was_first:
+            skip = self._first_frame(time_s, receive_time_s)
+        else:
+            skip = ""
+        rec = self.record
+        rec.last_time_s, rec.last_wall_s = time_s, receive_time_s
         if skip == "restart":
             self._left_out("restart")
             log.info("%s: learning: the gyro kept running across the restart (t = %r s); "
                      "its warm-up is not learnt", self.sensor, time_s)
+        elif skip == "missed_start":
+            self._left_out("missed_start")
+            log.info("%s: learning: the first frame is stamped %.1f s after the gyro's "
+                     "power-on, which the daemon did not see (it was down or started "
+                     "late); this warm-up is not learnt", self.sensor, time_s)
         elif skip:
             log.warning("%s: learning: a clock jump (time base change at t = %r s); nothing "
                         "is collected until the next power-on", self.sensor, time_s)
         else:
-            self.record.power_ons += 1
+            rec.power_ons += 1
             self._acc = WarmupAccumulator(
-                f"power-on {self.record.power_ons} at {_utc(self._clock())}", self.axes)
+                f"power-on {rec.power_ons} at {_utc(self._clock())}", self.axes)
             self._used_t = [math.inf, -math.inf]
+        if self._acc is not None:
+            rec.power_on_time_s = time_s
         self._reset_row()
         self._reset_block()
+        if was_first or self._acc is not None:  # what a killed daemon's successor reads
+            self._save()
         self.progress = self._progress()
+
+    def _first_frame(self, time_s: float, wall_s: float) -> str:
+        """Whether the daemon's first frame (no effects state taken back) starts a warm-up
+        it sees (""), continues one it cannot learn (``restart``) or is late in a power-on
+        it did not see (``missed_start``): module docstring."""
+        rec = self.record
+        last, since = rec.last_time_s, rec.power_on_time_s
+        if 0.0 <= time_s < DEVICE_CLOCK_LIMIT_S:  # the gyro's own time since power-on
+            if time_s <= FIRST_FRAME_MAX_S:
+                return ""
+            # the stamp clock restarted since the save (the gyro power-cycled) when it is
+            # behind the saved stamp, or advanced less than the wall clock by over the gap
+            wall_gap = (wall_s - rec.last_wall_s) - (time_s - last)
+            return ("restart" if time_s >= last and not wall_gap > self._gap_s
+                    else "missed_start")  # NaN last (no record): missed_start
+        # a host clock: the stamp tells nothing about the gyro's power-on
+        if 0.0 <= time_s - last <= self._gap_s or (
+                0.0 <= time_s - since <= self.config.warmup_window_s):
+            return "restart"
+        return ""
 
     def on_rate(self, x: float, y: float, z: float) -> None:
         """One raw rate frame (°/s)."""
@@ -242,9 +313,12 @@ class Learner:
         if m2 > self._bmax:
             self._bmax = m2
 
-    def on_estimate(self, est: TemperatureEstimate, power_on_s: float, sensor_ok: bool) -> None:
-        """One temperature frame's estimate (before the bias is refreshed)."""
+    def on_estimate(self, est: TemperatureEstimate, power_on_s: float, sensor_ok: bool,
+                    receive_time_s: float = math.nan) -> None:
+        """One temperature frame's estimate (before the bias is refreshed), the frame
+        received at wall-clock ``receive_time_s``."""
         self.poll()
+        self.record.last_time_s, self.record.last_wall_s = est.time_s, receive_time_s
         acc = self._acc
         if acc is None:
             return
@@ -252,7 +326,6 @@ class Learner:
         rates = (self._rx / n, self._ry / n, self._rz / n) if n else _NAN3
         self._reset_row()
         t_on = est.time_s - power_on_s
-        self.record.last_time_s = est.time_s
         if not t_on <= self.config.warmup_window_s:  # NaN too
             self._close("window")
             return
@@ -483,4 +556,4 @@ class _Job:
         return _Outcome(d, calibration=cal, calibration_id=cid, time_s=now)
 
 
-__all__ = ["SAVE_PERIOD_S", "Learner", "progress"]
+__all__ = ["DEVICE_CLOCK_LIMIT_S", "FIRST_FRAME_MAX_S", "SAVE_PERIOD_S", "Learner", "progress"]

@@ -268,7 +268,7 @@ class Pipeline(TimeWindow):
             self._power_on_waits_for = None
         elif prev is not None and base:
             self._rate_power_on(t, f"rate frames: time base changed from {prev!r} s",
-                                time_base=True)
+                                time_base=True, receive_time_s=receive_time_s)
         elif (prev is not None and t - prev > self._power_on_gap_s
               and t - self._last_temperature_s > self._power_on_gap_s
               and self._last_temperature_s > -math.inf):
@@ -277,7 +277,8 @@ class Pipeline(TimeWindow):
                                 f"{t - max(prev, self._last_temperature_s):.1f} s (> "
                                 f"power_on_gap_s = {self._power_on_gap_s:g} s), a rate frame "
                                 "first" + ("" if seen else "; the wall clock did not see the "
-                                           "silence: the zero is untrusted"), time_base=not seen)
+                                           "silence: the zero is untrusted"), time_base=not seen,
+                                receive_time_s=receive_time_s)
         flags = self._flags
         if t - self._last_temperature_s > self._estimator.config.stale_after_s:
             flags |= StatusFlags.TEMPERATURE_STALE
@@ -317,7 +318,8 @@ class Pipeline(TimeWindow):
         else:  # False: nobody subscribed; a string: the sink's drop reason
             self._drops[NO_SUBSCRIBER if routed is False else routed] += 1
 
-    def _rate_power_on(self, t: float, why: str, *, time_base: bool) -> None:
+    def _rate_power_on(self, t: float, why: str, *, time_base: bool,
+                       receive_time_s: float) -> None:
         """A power-on seen first on the rate stream (``why``): both streams were silent
         longer than ``power_on_gap_s``, or the rate stream's time base changed (a clock
         step or a reboot: the zero starts untrusted). The estimate from before is
@@ -328,7 +330,8 @@ class Pipeline(TimeWindow):
         self._power_on_waits_for = "temperature"
         self._estimator.reset()
         self.last_estimate = None
-        self._compensation.power_on(t, first=False, time_base=time_base)
+        self._compensation.power_on(t, first=False, time_base=time_base,
+                                    receive_time_s=receive_time_s)
         self._refresh_bias(step=False)
 
     def _on_temperature(self, s: TemperatureSample, receive_time_s: float) -> None:
@@ -352,7 +355,8 @@ class Pipeline(TimeWindow):
             if self._power_on_waits_for == "temperature":
                 pass  # the power-on was taken on the rate stream
             else:  # a new time base: power-on (a clock step or a reboot: untrusted zero)
-                self._compensation.power_on(t, first=first, time_base=not first)
+                self._compensation.power_on(t, first=first, time_base=not first,
+                                            receive_time_s=receive_time_s)
                 self._power_on_waits_for = None if first else "rate"
         elif t - last > self._power_on_gap_s:  # a silence longer than the gap: power-on,
             rate_t = self.last_sensor_time_s  # unless the rate frames kept coming
@@ -363,7 +367,8 @@ class Pipeline(TimeWindow):
                             "coming: not a power-on (effects and zero continue)", t - last)
             else:  # a silence the wall clock did not see: the stamps jumped (untrusted)
                 self._compensation.power_on(t, first=False, time_base=not _wall_saw(
-                    receive_time_s - self._temperature_rx_s, t - last))
+                    receive_time_s - self._temperature_rx_s, t - last),
+                    receive_time_s=receive_time_s)
         if self._power_on_waits_for == "temperature":
             self._power_on_waits_for = None
         self._temperature_run_n = 0
@@ -372,7 +377,7 @@ class Pipeline(TimeWindow):
         self.last_estimate = self._estimator.update(t, s.temperature_c)  # one per slot
         if self.learn is not None:  # may swap in an adopted calibration, between frames
             self.learn.on_estimate(self.last_estimate, self._compensation.power_on_s,
-                                   not s.status)
+                                   not s.status, receive_time_s)
         self._last_temperature_s = t
         self._sensor_status = s.status or 0
         self._refresh_bias(step=True)
