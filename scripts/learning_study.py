@@ -76,7 +76,7 @@ def of_calibration(cal: Calibration | None) -> Bias:
     def bias(f: RunFeatures, a: str) -> np.ndarray:
         if cal is None:
             return np.zeros(len(f.time_s))
-        return cal.bias_series(a, f.temperature_c, f.delta_t_c)[0]
+        return cal.bias_series(a, f.temperature_c, f.delta_t_c, f.time_s)[0]
     return bias
 
 

@@ -67,9 +67,10 @@ def test_state_round_trips_through_json_and_stays_bounded() -> None:
 
 
 @pytest.mark.parametrize(("edit", "needle"), [
-    (lambda d: d.update(version=2), "field 'version': expected learning state version 1"),
+    (lambda d: d.update(version=3), "field 'version': expected learning state version 2"),
+    (lambda d: d.update(version=1), "version 1 keeps 4 basis terms per warm-up"),
     (lambda d: d.update(axes=["x", "q"]), "field 'axes'"),
-    (lambda d: d["warmups"][1]["szz"].pop(), "field 'warmups[1].szz': expected a list of 16"),
+    (lambda d: d["warmups"][1]["szz"].pop(), "field 'warmups[1].szz': expected a list of 36"),
     (lambda d: d["warmups"][0]["sy"].update(x=float("nan")), "'warmups[0].sy.x': not a finite"),
     (lambda d: d["warmups"][0].update(n=-3), "'warmups[0].n': expected a count"),
     (lambda d: d["warmups"][0].update(n=12), "12 rows, fewer than the 60"),

@@ -52,6 +52,7 @@ from numpy.typing import NDArray
 
 from gyrotherm._errors import CalibrationError
 from gyrotherm.compensation._calibration import Calibration, ValidRange
+from gyrotherm.compensation._effects import Effects
 from gyrotherm.compensation._learn_gates import ADOPT_MARGIN, GATES, SETTLE_S, WARMUP_MAX_S
 from gyrotherm.compensation._models import Scaling, get_model
 from gyrotherm.estimators import EstimatorConfig
@@ -62,7 +63,13 @@ if TYPE_CHECKING:  # the fitting module is offline; the daemon's [learn] mode ne
 FloatArray = NDArray[np.float64]
 
 LEARN_SCALING = Scaling(t_ref_c=25.0, t_scale_c=30.0, dt_scale_c=5.0)
-K = 4  # slope terms: x², x, g, x·g (the paper model's order, intercept last)
+K = 6  # slope terms kept: x², x, g, x·g (the paper model's order), then x³, g² (effects)
+#: The paper model's columns of the basis (its intercept is the per-warm-up offset).
+PAPER = (0, 1, 2, 3)
+#: Effects the warm-ups can show, by their calibration v2 name: the basis column each adds.
+#: Warm-ups at rest only heat and only from power-on, so hysteresis, drift and a warm-up
+#: transient apart from ΔT (τ ≈ the die's) are not learnable from them.
+EFFECT_COLUMNS = {"cubic": 4, "gradient_quadratic": 5}
 MIN_ROWS = 60
 #: A log whose first row is later than this after power-on has lost its warm-up's start.
 MAX_START_S = 60.0
@@ -70,7 +77,12 @@ MAX_START_S = 60.0
 
 def _z(temperature_c: FloatArray, delta_t_c: FloatArray) -> FloatArray:
     x, g = LEARN_SCALING.centre(temperature_c, delta_t_c)
-    return np.column_stack([x * x, x, g, x * g])
+    return np.column_stack([x * x, x, g, x * g, x * x * x, g * g])
+
+
+def columns(effects: Sequence[str] = ()) -> tuple[int, ...]:
+    """The basis columns of the paper model plus ``effects`` (:data:`EFFECT_COLUMNS`)."""
+    return PAPER + tuple(EFFECT_COLUMNS[e] for e in effects)
 
 
 def warmup_rows(f: RunFeatures) -> NDArray[np.bool_]:
@@ -163,16 +175,21 @@ class WarmupStats:
                 "sdd": dict(self.sdd), "ndd": self.ndd}
 
 
-def slopes(stats: Sequence[WarmupStats], axis: str) -> tuple[FloatArray, float]:
-    """β (4 slopes, LEARN_SCALING basis) pooled within warm-ups, and the condition number
-    of the pooled cross-product (columns scaled to unit diagonal)."""
-    s_zz = sum((w.within(axis)[0] for w in stats), np.zeros((K, K)))
-    s_zy = sum((w.within(axis)[1] for w in stats), np.zeros(K))
+def slopes(stats: Sequence[WarmupStats], axis: str, cols: Sequence[int] = PAPER
+           ) -> tuple[FloatArray, float]:
+    """β (K slopes, LEARN_SCALING basis, zero outside ``cols``) pooled within warm-ups,
+    and the condition number of the pooled cross-product of ``cols`` (scaled to unit
+    diagonal)."""
+    idx = np.array(cols)
+    s_zz = sum((w.within(axis)[0] for w in stats), np.zeros((K, K)))[np.ix_(idx, idx)]
+    s_zy = sum((w.within(axis)[1] for w in stats), np.zeros(K))[idx]
     d = np.sqrt(np.maximum(np.diag(s_zz), 1e-300))
     a = s_zz / np.outer(d, d)
     cond = float(np.linalg.cond(a)) if np.all(np.isfinite(a)) else math.inf
-    beta, *_ = np.linalg.lstsq(a, s_zy / d, rcond=1e-12)
-    return np.asarray(beta / d, dtype=np.float64), cond
+    sub, *_ = np.linalg.lstsq(a, s_zy / d, rcond=1e-12)
+    beta = np.zeros(K)
+    beta[idx] = sub / d
+    return beta, cond
 
 
 def intercept(stats: Sequence[WarmupStats], axis: str, beta: FloatArray) -> float:
@@ -182,16 +199,23 @@ def intercept(stats: Sequence[WarmupStats], axis: str, beta: FloatArray) -> floa
 
 
 def basis_slopes(cal: Calibration | None, axis: str) -> FloatArray:
-    """A paper calibration's slopes in LEARN_SCALING's basis (the same polynomial space:
-    exact up to rounding); zeros for ``None`` (no compensation)."""
+    """A paper calibration's slopes in LEARN_SCALING's basis, its ``cubic`` and
+    ``gradient_quadratic`` effects included (the same polynomial space: exact up to
+    rounding; its other effects are not in the basis and are left out); zeros for
+    ``None`` (no compensation)."""
     if cal is None:
         return np.zeros(K)
     if cal.model.name != "paper":
         raise CalibrationError(f"learning compares against a paper-model calibration, "
                                f"not {cal.model.name!r}")
-    grid_t, grid_d = np.meshgrid(np.linspace(-20.0, 70.0, 5), np.linspace(-10.0, 10.0, 5))
+    grid_t, grid_d = np.meshgrid(np.linspace(-20.0, 70.0, 7), np.linspace(-10.0, 10.0, 5))
     t, d = grid_t.ravel(), grid_d.ravel()
     y = cal.base_series(axis, t, d)  # unclamped polynomial (base_series does not clamp)
+    eff = cal.effects.get(axis)
+    if eff is not None and eff.cubic is not None:
+        y = y + eff.cubic.coefficient_dps_per_c3 * (t - eff.cubic.t_ref_c) ** 3
+    if eff is not None and eff.gradient_quadratic is not None:
+        y = y + eff.gradient_quadratic.coefficient_dps_per_c2 * d * d
     z = np.column_stack([_z(t, d), np.ones(len(t))])
     coef, *_ = np.linalg.lstsq(z, y, rcond=None)
     return np.asarray(coef[:K], dtype=np.float64)
@@ -210,9 +234,12 @@ class Decision:
     current_rms_dps: Mapping[str, float] = field(default_factory=dict)
     axes_adopted: tuple[str, ...] = ()
     """The axes whose learnt model is used (all of them, or per axis without a current)."""
+    effects: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    """Per axis, the effects (:data:`EFFECT_COLUMNS`) the held-out warm-ups chose."""
 
     def to_dict(self) -> dict[str, Any]:
         return {"adopt": self.adopt, "axes_adopted": list(self.axes_adopted),
+                "effects": {a: list(e) for a, e in self.effects.items() if e},
                 "reasons": list(self.reasons), "warmups": self.warmups,
                 "start_span_c": self.start_span_c, "condition": self.condition,
                 "candidate_heldout_rms_dps": dict(self.candidate_rms_dps),
@@ -220,15 +247,16 @@ class Decision:
 
 
 def heldout_rms(stats: Sequence[WarmupStats], axis: str,
-                fixed: FloatArray | None = None, scored: Sequence[int] | None = None
-                ) -> float:
-    """RMS on each warm-up of slopes fitted without it (``fixed``: the same slopes for
-    every warm-up, a calibration learnt elsewhere), offsets removed per warm-up; over
-    the warm-ups ``scored`` (indices; default all), the fits still using all the others."""
+                fixed: FloatArray | None = None, scored: Sequence[int] | None = None,
+                cols: Sequence[int] = PAPER) -> float:
+    """RMS on each warm-up of slopes (basis columns ``cols``) fitted without it
+    (``fixed``: the same slopes for every warm-up, a calibration learnt elsewhere),
+    offsets removed per warm-up; over the warm-ups ``scored`` (indices; default all),
+    the fits still using all the others."""
     sse, n = 0.0, 0
     for k in range(len(stats)) if scored is None else scored:
         beta = fixed if fixed is not None else slopes(
-            [s for j, s in enumerate(stats) if j != k], axis)[0]
+            [s for j, s in enumerate(stats) if j != k], axis, cols)[0]
         sse += stats[k].sse(axis, beta)
         n += stats[k].n
     return math.sqrt(sse / n)
@@ -253,16 +281,16 @@ def floor_ms(stats: Sequence[WarmupStats], axis: str,
     """What the model class leaves on the warm-ups ``scored`` fitted on all of ``stats``
     (in sample, offsets removed per warm-up), mean square (°/s)²: white noise, the slow
     noise no thermal model removes (bias instability, rate random walk) and the part of
-    the bias the paper model cannot express."""
-    beta = slopes(stats, axis)[0]
+    the bias the richest model (the paper model and every effect) cannot express."""
+    beta = slopes(stats, axis, tuple(range(K)))[0]
     ks = range(len(stats)) if scored is None else scored
     n = sum(stats[k].n for k in ks)
     return sum(stats[k].sse(axis, beta) for k in ks) / n if n else 0.0
 
 
 def heldout_bias_rms(stats: Sequence[WarmupStats], axis: str,
-                     fixed: FloatArray | None = None, scored: Sequence[int] | None = None
-                     ) -> float:
+                     fixed: FloatArray | None = None, scored: Sequence[int] | None = None,
+                     cols: Sequence[int] = PAPER) -> float:
     """:func:`heldout_rms` with what no calibration can remove taken out: the RMS of the
     *reducible* bias error, √max(MSE_held-out − :func:`floor_ms`, 0) (°/s).
 
@@ -270,8 +298,54 @@ def heldout_bias_rms(stats: Sequence[WarmupStats], axis: str,
     leaves the gyro's slow noise in both sides of :func:`decide`'s comparison: with a
     bias instability of 0.006 °/s against a thermal bias of 0.009 °/s a margin of 10 %
     could then never be met (docs/findings.md §8)."""
-    rms = heldout_rms(stats, axis, fixed, scored)
+    rms = heldout_rms(stats, axis, fixed, scored, cols)
     return math.sqrt(max(rms * rms - floor_ms(stats, axis, scored), 0.0))
+
+
+def choose_effects(stats: Sequence[WarmupStats], axis: str, scored: Sequence[int], *,
+                   margin: float = ADOPT_MARGIN) -> tuple[tuple[str, ...], float, str]:
+    """The effects ``axis``' held-out warm-ups support: of the paper model alone and with
+    each subset of :data:`EFFECT_COLUMNS` (well conditioned), the one with the least
+    held-out bias error, taken only when it beats the paper model alone by ``margin``
+    overall and on enough warm-ups one by one (:data:`EFFECT_SIGN_P`: one warm-up's slow
+    noise can carry the pooled margin); (effects, its held-out bias RMS, a sentence
+    saying so or "")."""
+    paper = heldout_bias_rms(stats, axis, scored=scored)
+    best: tuple[tuple[str, ...], float] = ((), paper)
+    for effects in (("cubic",), ("gradient_quadratic",), ("cubic", "gradient_quadratic")):
+        cols = columns(effects)
+        if not slopes(stats, axis, cols)[1] <= GATES["max_condition"]:
+            continue
+        rms = heldout_bias_rms(stats, axis, scored=scored, cols=cols)
+        if rms < best[1]:
+            best = (effects, rms)
+    if not best[0] or best[1] > (1.0 - margin) * paper:
+        return (), paper, ""
+    wins = sum(_fold_sse(stats, axis, k, columns(best[0])) < _fold_sse(stats, axis, k, PAPER)
+               for k in scored)
+    p = _sign_p(wins, len(scored))
+    if p > EFFECT_SIGN_P:
+        return (), paper, (f"{axis}: {' and '.join(best[0])} not learnt: better on "
+                           f"{wins} of {len(scored)} held-out warm-ups (sign test p = "
+                           f"{p:.2g} > {EFFECT_SIGN_P:g})")
+    return best[0], best[1], (f"{axis}: {' and '.join(best[0])} learnt (held-out bias "
+                              f"error {paper:.4g} → {best[1]:.4g} °/s, better on {wins} of "
+                              f"{len(scored)} warm-ups, sign test p = {p:.2g})")
+
+
+#: An effect is learnt only when it is better on so many held-out warm-ups that chance
+#: would do as well with at most this probability (one-sided sign test; 5 warm-ups at least).
+EFFECT_SIGN_P = 0.05
+
+
+def _fold_sse(stats: Sequence[WarmupStats], axis: str, k: int, cols: Sequence[int]) -> float:
+    return stats[k].sse(axis, slopes([s for j, s in enumerate(stats) if j != k], axis,
+                                     cols)[0])
+
+
+def _sign_p(wins: int, n: int) -> float:
+    """P(at least ``wins`` of ``n`` fair coin tosses)."""
+    return sum(math.comb(n, i) for i in range(wins, n + 1)) / 2.0 ** n if n else 1.0
 
 
 def decide(stats: Sequence[WarmupStats], current: Calibration | None,
@@ -306,7 +380,8 @@ def decide(stats: Sequence[WarmupStats], current: Calibration | None,
         return Decision(False, ("held-out warm-ups: none that the current calibration was "
                                 "not learnt from: it is kept until a new one comes",),
                         len(stats), span, cond)
-    cand = {a: heldout_bias_rms(stats, a, scored=fresh) for a in axes}
+    chosen = {a: choose_effects(stats, a, fresh, margin=margin) for a in axes}
+    cand = {a: chosen[a][1] for a in axes}
     cur = {a: heldout_bias_rms(stats, a, basis_slopes(current, a), fresh) for a in axes}
     better = tuple(a for a in axes if cand[a] <= (1.0 - margin) * cur[a])
     worse = [a for a in axes if a not in better]
@@ -321,12 +396,15 @@ def decide(stats: Sequence[WarmupStats], current: Calibration | None,
                            f"{a}: {cand[a]:.4g} vs {cur[a]:.4g} °/s" for a in worse) + ")"
                        + ("" if current is None else ": the current calibration is kept"))
     adopted = better if current is None else (tuple(axes) if not worse else ())
+    reasons += [chosen[a][2] for a in adopted if chosen[a][2]]  # learnt, or why not
     return Decision(bool(adopted), tuple(reasons), len(stats), span, cond, cand, cur,
-                    adopted)
+                    adopted, {a: chosen[a][0] for a in adopted})
 
 
 def validated_extension(stats: Sequence[WarmupStats], axes: Sequence[str], *,
-                        margin: float = ADOPT_MARGIN) -> tuple[float, float]:
+                        margin: float = ADOPT_MARGIN,
+                        effects: Mapping[str, Sequence[str]] | None = None
+                        ) -> tuple[float, float]:
     """How far (°C, below and above) the learnt T range may be used unclamped: as far as
     the leave-one-power-on-out validation itself extrapolated, and no further.
 
@@ -335,7 +413,9 @@ def validated_extension(stats: Sequence[WarmupStats], axes: Sequence[str], *,
     their range. That overhang counts as validated when, on every axis of ``axes``, its
     bias error there beat no compensation by ``margin``
     (:func:`heldout_bias_rms` scored on that warm-up alone); else 0 (the range stays the
-    data's, clamped, like the autopilots'). With fewer than 3 warm-ups, (0, 0)."""
+    data's, clamped, like the autopilots'). Each axis is scored with its ``effects``.
+    With fewer than 3 warm-ups, (0, 0)."""
+    eff = effects or {}
     if len(stats) < 3 or not axes:
         return 0.0, 0.0
     out = []
@@ -346,7 +426,8 @@ def validated_extension(stats: Sequence[WarmupStats], axes: Sequence[str], *,
         overhang = (min(others) - ends[k]) if side == 0 else (ends[k] - max(others))
         ok = overhang > 0 and all(
             0.0 < (none := heldout_bias_rms(stats, a, np.zeros(K), [k]))
-            and heldout_bias_rms(stats, a, scored=[k]) <= (1.0 - margin) * none
+            and heldout_bias_rms(stats, a, scored=[k], cols=columns(eff.get(a, ())))
+            <= (1.0 - margin) * none
             for a in axes)
         out.append(float(overhang) if ok else 0.0)
     return out[0], out[1]
@@ -362,15 +443,20 @@ def learnt_calibration(stats: Sequence[WarmupStats], axes: Sequence[str], *,
     by :func:`validated_extension` (``validated_extrapolation_c`` in the provenance;
     ``coverage_c`` stays the data's)."""
     coefficients: dict[str, tuple[float, ...]] = {}
+    chosen = decision.effects if decision is not None else {}
+    effects: dict[str, Effects] = {}
     for a in axes:
         if decision is not None and a not in decision.axes_adopted:
-            coefficients[a] = (0.0,) * (K + 1)  # not learnt well enough: no compensation
+            coefficients[a] = (0.0,) * (len(PAPER) + 1)  # not learnt well: no compensation
             continue
-        beta = slopes(stats, a)[0]
-        coefficients[a] = (*(float(b) for b in beta), float(intercept(stats, a, beta)))
+        beta = slopes(stats, a, columns(chosen.get(a, ())))[0]
+        coefficients[a] = (*(float(b) for b in beta[:len(PAPER)]),
+                           float(intercept(stats, a, beta)))
+        if chosen.get(a):
+            effects[a] = _effects(beta, chosen[a])
     lo_c, hi_c = min(w.t_range_c[0] for w in stats), max(w.t_range_c[1] for w in stats)
     used = [a for a in axes if decision is None or a in decision.axes_adopted]
-    below_c, above_c = validated_extension(stats, used)
+    below_c, above_c = validated_extension(stats, used, effects=chosen)
     rng = ValidRange(lo_c - below_c, hi_c + above_c,
                      min(w.dt_range_c[0] for w in stats), max(w.dt_range_c[1] for w in stats))
     record = {"method": "learnt from warm-ups at rest, one offset per power-on",
@@ -382,9 +468,24 @@ def learnt_calibration(stats: Sequence[WarmupStats], axes: Sequence[str], *,
               **(provenance or {})}
     return Calibration(model=get_model("paper"), scaling=LEARN_SCALING,
                        coefficients=coefficients, valid_range=rng, estimator=estimator,
-                       provenance=record)
+                       provenance=record, effects=effects)
 
 
-__all__ = ["ADOPT_MARGIN", "GATES", "LEARN_SCALING", "SETTLE_S", "WARMUP_MAX_S", "Decision",
-           "WarmupStats", "decide", "floor_ms", "heldout_bias_rms", "heldout_rms",
-           "learnt_calibration", "noise_var", "unseen", "validated_extension", "warmup_rows"]
+def _effects(beta: FloatArray, names: Sequence[str]) -> Effects:
+    """The calibration v2 effects of slopes ``beta``: x³ = (T − 25)³/30³ and g² = ΔT²/5²
+    in :data:`LEARN_SCALING`, exactly."""
+    t = LEARN_SCALING
+    params: dict[str, dict[str, float]] = {}
+    if "cubic" in names:
+        params["cubic"] = {"coefficient_dps_per_c3": float(beta[4]) / t.t_scale_c ** 3,
+                           "t_ref_c": t.t_ref_c}
+    if "gradient_quadratic" in names:
+        params["gradient_quadratic"] = {
+            "coefficient_dps_per_c2": float(beta[5]) / t.dt_scale_c ** 2}
+    return Effects.from_params(params)
+
+
+__all__ = ["ADOPT_MARGIN", "EFFECT_COLUMNS", "GATES", "LEARN_SCALING", "PAPER", "SETTLE_S",
+           "WARMUP_MAX_S", "Decision", "WarmupStats", "choose_effects", "columns", "decide",
+           "floor_ms", "heldout_bias_rms", "heldout_rms", "learnt_calibration", "noise_var",
+           "unseen", "validated_extension", "warmup_rows"]

@@ -35,7 +35,9 @@ from gyrotherm.compensation._learn import (
 )
 
 MAX_POWER_ONS = 256
-STATE_VERSION = 1
+#: 2: six basis terms per warm-up (the paper model's four, then x³ and g² for the effects);
+#: version 1 kept four and cannot be extended (its rows are gone): it is refused, saying so.
+STATE_VERSION = 2
 
 
 class WarmupAccumulator:
@@ -123,6 +125,11 @@ class LearnState:
         def bad(path: str, why: str) -> CalibrationError:
             return CalibrationError(f"{source}: field {path!r}: {why}")
 
+        if isinstance(doc, dict) and doc.get("version") == 1:
+            raise bad("version", "learning state version 1 keeps 4 basis terms per warm-up, "
+                      f"version {STATE_VERSION} keeps {K} (effects are learnt too); the rows "
+                      "behind it are gone, so its warm-ups cannot be used: learning starts "
+                      "again (an adopted calibration is kept)")
         if not isinstance(doc, dict) or doc.get("version") != STATE_VERSION:
             raise bad("version", f"expected learning state version {STATE_VERSION}, got "
                       f"{(doc.get('version') if isinstance(doc, dict) else doc)!r:.40}")
