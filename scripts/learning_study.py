@@ -102,13 +102,14 @@ def one_seed(seed: int, gyro: GyroParams = LIFE_GYRO) -> dict[str, dict[int, flo
                                                           hold_s=900.0, gyro=gyro)],
                   "paper", estimator=EST)
     stats = [WarmupStats.from_features(f) for f in train]
-    out: dict[str, dict[int, float]] = {m: {} for m in
-                                        ("gyrotherm", "ardupilot", "px4", "chamber", "none")}
+    out: dict[str, dict[int, float]] = {m: {} for m in ("gyrotherm", "ardupilot", "px4",
+                                                         "chamber", "none", "effects")}
     for k in KS:
         d = decide(stats[:k], None, AXES) if k >= 2 else None
         cal = (learnt_calibration(stats[:k], AXES, estimator=EST, decision=d)
                if d and d.adopt else None)
         out["gyrotherm"][k] = score(of_calibration(cal), held)
+        out["effects"][k] = float(sum(bool(e) for e in d.effects.values())) if d else 0.0
         out["ardupilot"][k] = score(cubic_in_t(train[0], 35.0), held)
         coldest = min(train[:k], key=lambda f: float(f.temperature_c[0]))
         out["px4"][k] = score(cubic_in_t(coldest, None), held)
@@ -154,6 +155,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     print("bias error against truth on 12 held-out warm-ups per seed, RMS °/s (offset "
           f"removed), median (min–max) over seeds {seeds}:\n")
     print(table(results))
+    print("\naxes with effects learnt (cubic, ΔT²), summed over seeds: " + ", ".join(
+        f"K={k}: {sum(r['effects'][k] for r in results.values()):g}" for k in KS))
     if a.json:
         Path(a.json).write_text(json.dumps({str(s): r for s, r in results.items()}, indent=1))
     return 0
