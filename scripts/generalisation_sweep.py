@@ -1,6 +1,7 @@
 """Does the diagnosis generalise beyond the catalogue's exact forms? A seeded sweep.
 
-    .venv/bin/python scripts/generalisation_sweep.py [--seeds dev|eval|shapes-dev|shapes-eval]
+    .venv/bin/python scripts/generalisation_sweep.py
+        [--seeds dev|eval|eval1|shapes-dev|shapes-eval|null-eval]
         [--quick] [--conditions I ...] [--cases NAME ...] [--json OUT]
 
 Per case (what is injected) × condition (sample rate, temperature readout, number
@@ -39,6 +40,12 @@ false alarm; seeded percentile bootstrap (2000 resamples) for the median
 parameter error. Development seeds (:data:`DEV_SEEDS`) and evaluation seeds
 (:data:`EVAL_SEEDS`, fixed before any result on them) are run and reported
 separately (``--seeds``). The conditions were fixed before any result was seen.
+
+``--seeds null-eval`` (:data:`NULL_EVAL_SEEDS`) is the null case alone at scale: each
+seed is one device diagnosed once, at one condition (seed *j* of the list at condition
+*j* mod 4), so every condition gets the same number of distinct devices and no device
+is shared between diagnoses; the report adds a table of nulls per condition (false
+alarms with their names and Wilson 95 % intervals, "not resolvable" verdicts by effect).
 """
 
 from __future__ import annotations
@@ -76,8 +83,14 @@ saturating and |ΔT| responses, rate-dependent hysteresis): the shape checks and
 SHAPE_EVAL_SEEDS = (301, 302, 303, 304, 305)
 """Evaluation seeds for those shapes, fixed (the commit adding this line) before the
 shapes existed and before any result on them was seen; run once, reported separately."""
+NULL_EVAL_SEEDS = tuple(range(5001, 5801))
+"""Null-only evaluation (issue 19 item 1, "nulls at scale"): 800 seeds, fixed (the commit
+adding this line) before any result on them was seen; never used while developing; run
+once. Seed j of the list (0-based) is diagnosed at CONDITIONS[j % 4] with nothing injected:
+200 distinct devices per condition, the 1 °C / 1.3 s / 3-run corner included."""
 SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
-             "shapes-dev": SHAPE_DEV_SEEDS, "shapes-eval": SHAPE_EVAL_SEEDS}
+             "shapes-dev": SHAPE_DEV_SEEDS, "shapes-eval": SHAPE_EVAL_SEEDS,
+             "null-eval": NULL_EVAL_SEEDS}
 DURATION_S = 6000.0
 STEP_AT_C = 30.0
 CHECKED = {
@@ -296,6 +309,37 @@ def _names(rows: Sequence[dict[str, Any]], labels: Sequence[str]) -> list[str]:
     return out
 
 
+def _nulls(rows: Sequence[dict[str, Any]], labels: Sequence[str]) -> list[str]:
+    """Nothing injected, per condition and whole: diagnoses naming anything (Wilson 95 %),
+    the names, and the "not resolvable" verdicts (no false alarms: the diagnosis said the
+    data cannot support the effect), by effect."""
+    out = ["| condition | null diagnoses | false alarms: diagnoses [95 % CI] | names (seed) "
+           "| diagnoses with a verdict | verdicts by effect |", "|---|---|---|---|---|---|"]
+    null = [r for r in rows if r["case"] == "none"]
+    for label in (*labels, "whole"):
+        sel = [r for r in null if label in ("whole", r["condition"])]
+        if not sel:
+            continue
+        alarmed = [r for r in sel if r["false_alarms"]]
+        names = "; ".join(f"{', '.join(r['false_alarms'])} ({r['seed']})" for r in alarmed)
+        verdicts = [v for r in sel for v in r["not_resolvable"]]
+        by_effect = ", ".join(f"{v} ×{verdicts.count(v)}" for v in sorted(set(verdicts)))
+        out.append(f"| {label} | {len(sel)} | {_rate(len(alarmed), len(sel))} | {names or '—'} "
+                   f"| {sum(1 for r in sel if r['not_resolvable'])} | {by_effect or '—'} |")
+    return out
+
+
+def _seed_ranges(seeds: Sequence[int]) -> str:
+    """1, 2, 3, 5 → "1–3, 5"."""
+    spans: list[tuple[int, int]] = []
+    for s in sorted(set(seeds)):
+        if spans and spans[-1][1] == s - 1:
+            spans[-1] = (spans[-1][0], s)
+        else:
+            spans.append((s, s))
+    return ", ".join(f"{a}–{b}" if b > a else f"{a}" for a, b in spans)
+
+
 def _totals(rows: Sequence[dict[str, Any]]) -> list[str]:
     null = [r for r in rows if r["case"] == "none"]
     found = sum(len(r["found"]) for r in rows)
@@ -330,22 +374,26 @@ def sweep(seeds: Sequence[int], *, quick: bool = False, conditions: Sequence[int
     conds = CONDITIONS[::3] if quick else CONDITIONS
     if conditions is not None:
         conds = tuple(CONDITIONS[i] for i in conditions)
+    jobs = [(cond, case, seed) for cond in conds for case in cases for seed in seeds]
+    if tuple(seeds) == NULL_EVAL_SEEDS:  # one device per diagnosis, conditions in turn
+        keep = range(len(CONDITIONS)) if conditions is None else conditions
+        jobs = [(CONDITIONS[j % len(CONDITIONS)], CASES[0], seed)
+                for j, seed in enumerate(seeds) if j % len(CONDITIONS) in keep]
     rows = []
-    for cond in conds:
-        for case in cases:
-            for seed in seeds:
-                rows.append(run_case(case, cond, seed))
-                r = rows[-1]
-                print(f"generalisation_sweep: {cond.name} | {case.name} | seed {seed}: found "
-                      f"{r['found']}, missed {r['missed']}, false alarms {r['false_alarms']}",
-                      file=sys.stderr, flush=True)
+    for cond, case, seed in jobs:
+        rows.append(run_case(case, cond, seed))
+        r = rows[-1]
+        print(f"generalisation_sweep: {cond.name} | {case.name} | seed {seed}: found "
+              f"{r['found']}, missed {r['missed']}, false alarms {r['false_alarms']}, "
+              f"not resolvable {r['not_resolvable']}", file=sys.stderr, flush=True)
     return rows
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
     p.add_argument("--seeds", choices=sorted(SEED_SETS), default="dev",
-                   help="development seeds (default) or the evaluation seeds")
+                   help="development seeds (default), an evaluation set, or null-eval "
+                   "(nothing injected, one device per diagnosis)")
     p.add_argument("--quick", action="store_true",
                    help="5 cases × 2 conditions instead of 11 × 4")
     p.add_argument("--conditions", type=int, nargs="+", metavar="I",
@@ -363,7 +411,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         " --conditions " + " ".join(map(str, args.conditions)) if args.conditions else "") + (
         " --cases " + " ".join(args.cases) if args.cases else "")
     print(f"`.venv/bin/python {cmd}` at commit {revision}, {args.seeds} seeds "
-          f"{', '.join(str(s) for s in sorted({r['seed'] for r in rows}))}, "
+          f"{_seed_ranges([r['seed'] for r in rows])}, "
           f"{DURATION_S:g}-s runs, {len(rows)} diagnoses, {elapsed:.0f} s")
     print()
     labels = list(dict.fromkeys(r["case"] for r in rows))
@@ -374,6 +422,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     print("\n".join(_summary(rows, "condition", [c.name for c in CONDITIONS])))
     print()
     print("\n".join(_totals(rows)))
+    if args.seeds == "null-eval":
+        print()
+        print("\n".join(_nulls(rows, [c.name for c in CONDITIONS])))
     declared = [r for r in rows if r["not_resolvable"]]
     print()
     print(f"Declared not resolvable at this readout: {len(declared)} diagnoses"

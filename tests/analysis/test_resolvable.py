@@ -24,6 +24,9 @@ FIRST_EVAL_SEEDS = (101, 102, 103, 104, 105)
 EVAL_SEEDS = (201, 202, 203, 204, 205)
 """Fixed (the commit adding this line) before any result on them was seen."""
 DEV_SEEDS = (1, 2, 3, 4, 5, 6, *FIRST_EVAL_SEEDS)
+NULL_EVAL_SEEDS = tuple(range(5001, 5801))
+"""Nothing injected at scale (``--seeds null-eval``): fixed (the commit adding this line)
+before any result on them was seen; seed j at the sweep's condition j % 4."""
 CORNER = 3
 """Index of the 1 °C / 1.3 s / 3-run condition in the sweep's CONDITIONS."""
 
@@ -34,6 +37,15 @@ def test_eval_seeds_are_disjoint_from_development_seeds(sweep: ModuleType) -> No
     assert sweep.DEV_SEEDS == DEV_SEEDS
     assert sweep.FIRST_EVAL_SEEDS == FIRST_EVAL_SEEDS
     assert sweep.CONDITIONS[CORNER].lsb_c == 1.0 and sweep.CONDITIONS[CORNER].n_runs == 3
+
+
+def test_null_eval_seeds_are_fresh_and_cover_every_condition_equally(sweep: ModuleType) -> None:
+    assert sweep.NULL_EVAL_SEEDS == NULL_EVAL_SEEDS
+    others = {*DEV_SEEDS, *EVAL_SEEDS, *sweep.SHAPE_DEV_SEEDS, *sweep.SHAPE_EVAL_SEEDS}
+    assert not set(NULL_EVAL_SEEDS) & others
+    n = len(sweep.CONDITIONS)
+    counts = [len(NULL_EVAL_SEEDS[i::n]) for i in range(n)]
+    assert counts == [len(NULL_EVAL_SEEDS) // n] * n
 
 
 def test_wilson_interval() -> None:
