@@ -3,11 +3,11 @@
 Per run (one rate axis):
 
 1. the temperature readout is characterised from the readings themselves:
-   refresh period (the comb every gap between changes sits on,
-   :func:`_refresh_from_changes`), LSB (the grid the readings sit on) and white
-   noise (second differences a refresh apart, less the quantisation);
-   tests/analysis/test_readout_table.py checks all three against a generator's
-   truth over refresh 0.05…1.28 s, LSB 0.0625…1 °C and 10…200 Hz;
+   refresh period (the lattice every change sits on, :func:`_refresh_from_changes`),
+   LSB (the grid the readings sit on) and white noise (one reading per refresh about
+   a local quartic, less the quantisation, :func:`_white_noise`);
+   tests/analysis/test_readout_table.py checks all three against the synthetic
+   generator's truth over refresh 0.05…1.3 s, LSB 0.0625…1 °C and 10…200 Hz;
 2. the product's Kalman estimator (:func:`gyrotherm.estimators.estimate_series`)
    runs over the readings, fed at most once per ``max(update period, 1 s)``,
    giving T and dT/dt; ΔT = τ·dT/dt, where τ is regressed from the logged
@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import savgol_filter
+from scipy.signal import savgol_coeffs, savgol_filter
 
 from gyrotherm._errors import CalibrationError
 from gyrotherm.analysis._effects import DIRECTION_WIDTH_C, direction_state
@@ -98,79 +98,210 @@ def _grid_step(values: FloatArray, *, floor: float) -> float:
     return step if float(np.max(np.abs(k - np.round(k)))) < 0.05 else 0.0
 
 
-#: Candidate refresh periods scanned per run (log-spaced from 1.5 row intervals to the
-#: shortest gap between changes plus one row).
-_CANDIDATES = 4000
 #: A gap "fits" a candidate P' when it is a whole multiple of P' within this many row
 #: intervals (a change is seen at the first row after its refresh: up to one row off
 #: per gap, whole rows when the refresh is commensurate with the rows; 10 % for the
 #: stamps' jitter).
 _FIT_ROWS = 1.1
-#: The least share of gaps that must fit.
+#: The least share of gaps that must fit a candidate of the comb.
 _FIT_MIN = 0.8
+#: The least share of changes that must sit on the candidate's lattice.
+_LATTICE_MIN = 0.9
+#: The shortest refresh told from the rows, in row intervals: a lattice of two rows
+#: holds changes on rows of either parity when the refresh straddles the row stamps.
+_MIN_REFRESH_ROWS = 2.2
 _MAX_GAPS = 5000
+#: Candidate × gap products scored at most (vectorised in chunks of ~2e6).
+_COMB_BUDGET = 20_000_000
+#: Largest-first comb candidates checked on the lattice before giving up.
+_MAX_LATTICE_TRIES = 2000
+#: The least share on the least-squares lattice (window widened by its uncertainty)
+#: for the period to be scanned about it.
+_LATTICE_QUICK = 0.8
 
 
-def _refresh_from_changes(t: FloatArray, change: NDArray[np.int64], dt: float) -> float:
-    """The readout's refresh period from the times its value changed (s).
+def _comb(gaps: FloatArray, dt: float, lo: float, hi: float) -> tuple[FloatArray, FloatArray]:
+    """Candidate refresh periods between ``lo`` and ``hi`` snapped to the comb each
+    selects (the least-squares period of the gaps given their multiples
+    n = round(g/P')), with the share of gaps within :data:`_FIT_ROWS` rows of a multiple.
+    The candidates are log-spaced finely enough that n is right for the longer gaps
+    (relative step dt / (4 · 90th percentile gap)), so a refresh that rarely changes
+    the value (gaps of hundreds of refreshes) is still among them."""
+    long_gap = float(np.quantile(gaps, 0.9))
+    step = min(2e-3, dt / (4.0 * long_gap))
+    count = int(min(max(math.log(hi / lo) / step, 2.0), 400_000))
+    if count * len(gaps) > _COMB_BUDGET:  # evenly spread gaps: bounded cost
+        keep = max(50, _COMB_BUDGET // count)
+        gaps = gaps[np.linspace(0, len(gaps) - 1, min(keep, len(gaps))).astype(np.int64)]
+    cand = np.geomspace(lo, hi, count)
+    tol = _FIT_ROWS * dt
+    snapped, fit = np.empty(count), np.empty(count)
+    chunk = max(1, 2_000_000 // len(gaps))
+    for s in range(0, count, chunk):
+        p = cand[s:s + chunk, None]
+        n = np.maximum(np.round(gaps[None, :] / p), 1.0)
+        q = (n @ gaps) / np.einsum("ij,ij->i", n, n)
+        snapped[s:s + chunk] = q
+        fit[s:s + chunk] = np.mean(np.abs(gaps[None, :] - n * q[:, None]) <= tol, axis=1)
+    return snapped, fit
+
+
+def _most_within(resid: FloatArray, width: float) -> NDArray[np.int64]:
+    """Per row of ``resid`` (sorted along each row), the most values in one window of
+    ``width``."""
+    m, n = resid.shape
+    gap = float(np.ptp(resid)) + 2.0 * width + 1.0
+    flat = (resid + gap * np.arange(m)[:, None]).ravel()
+    inside = np.searchsorted(flat, flat + width, side="right") - np.arange(m * n)
+    return np.asarray(np.max(inside.reshape(m, n), axis=1), dtype=np.int64)
+
+
+def _lattice(tc: FloatArray, q: float, dt: float) -> tuple[float, float, float, float]:
+    """The refresh P near ``q`` on which the change times ``tc`` sit, the share of
+    changes that sit on it, how far about the least-squares P the scan reached, and a
+    refresh instant φ (the start of the window that holds the most changes).
+
+    Each change is seen on the first row after a refresh φ + k·P, so t_c − (φ + k_c·P)
+    lies within one row interval for every change. The refresh indices k_c are
+    unwrapped along the run from the gaps (k_{c+1} − k_c = round(gap/q)), then φ and P
+    are fitted by least squares over the whole run and k_c reassigned (three rounds):
+    a long baseline, so a comb that only fits the gaps locally (0.73 s against a
+    0.64-s refresh whose value changes every 7–8 refreshes, 3 rows against a 1-row
+    refresh) drifts off the changes. The share is the most changes t_c − k_c·P in one
+    window of 1.1 row intervals, the largest over P scanned ±4 least-squares errors
+    about the fit (a few changes leave the least squares a row or two off over a long
+    run); the scan runs only where the share at the fit, the window widened by that
+    uncertainty, reaches :data:`_LATTICE_QUICK`."""
+    n = len(tc)
+    k = np.r_[0.0, np.cumsum(np.maximum(np.round(np.diff(tc) / q), 1.0))]
+    period, phase = q, float(tc[0])
+    for _ in range(3):
+        kc = k - k.mean()
+        period = float(np.dot(kc, tc - tc.mean()) / np.dot(kc, kc))
+        if not period > 0:
+            return q, 0.0, 0.0, 0.0
+        phase = float(tc.mean() - period * k.mean())
+        k = np.round((tc - phase) / period)
+    span = max(float(np.ptp(k)), 1.0)
+    reach = 4.0 * dt / (max(float(np.std(k)), 1.0) * math.sqrt(n))
+    width = _FIT_ROWS * dt
+    resid = np.sort(tc - k * period)[None, :]
+    if _most_within(resid, width + reach * span / 2.0)[0] < _LATTICE_QUICK * n:
+        return period, 0.0, reach, 0.0
+    # steps drifting 2 % of a row over the run
+    steps = min(400, 1 + 2 * int(reach * span / (0.02 * dt)))
+    periods = period + np.linspace(-reach, reach, steps)
+    best, most = period, -1
+    chunk = max(1, 2_000_000 // n)
+    for s in range(0, steps, chunk):
+        p = periods[s:s + chunk]
+        inside = _most_within(np.sort(tc[None, :] - k[None, :] * p[:, None], axis=1), width)
+        i = int(np.argmax(inside))
+        if inside[i] > most:
+            best, most = float(p[i]), int(inside[i])
+    resid = np.sort(tc - k * best)
+    start = np.searchsorted(resid, resid + width, side="right") - np.arange(n)
+    return best, most / n, reach, float(resid[int(np.argmax(start))])
+
+
+def _refresh_from_changes(t: FloatArray, change: NDArray[np.int64],
+                          dt: float) -> tuple[float, float | None]:
+    """The readout's refresh period from the times its value changed (s), and one of
+    its refresh instants (None where every row is taken as fresh).
 
     A reading can only change at a refresh, so every gap g between two changes is a
-    whole multiple n·P of the refresh P, give or take the row grid: a change is seen
-    at the first row after its refresh, so each gap is off by less than one row
-    interval dt. A quantised, slowly moving temperature repeats its value for several
-    refreshes, so the gaps' small percentiles or their minimum give 2P, 5P …, not P.
-    Instead each candidate P' (log-spaced, then snapped to the comb it selects: the
-    least-squares period of the gaps given their multiples n = round(g/P')) is scored
-    by the share F(P') of gaps within :data:`_FIT_ROWS`·dt of a multiple of it. The
-    refresh and its divisors P/m fit (almost) every gap; a multiple kP fits only the
-    gaps whose stride is a multiple of k (a steady ramp whose value changes every 15
-    or 16 refreshes fits none of 7.75P); a candidate off the comb drifts out of
-    tolerance over n refreshes. The refresh is
-    the *largest* candidate whose F reaches :data:`_FIT_MIN`, refined as
-    Σ g / Σ round(g/P) over gaps of ≤ 3 and then ≤ 10 refreshes. Candidates stop at
-    the shortest gap plus a row (no refresh is longer); changes on consecutive rows
-    (shortest gap one row), or no candidate qualifying, mean every row is fresh
-    (refresh = dt): a refresh under 1.5 rows cannot be told from the rows."""
-    gaps = np.diff(t[change])
-    if len(gaps) > _MAX_GAPS:  # evenly spread: the whole run, bounded cost
-        gaps = gaps[np.linspace(0, len(gaps) - 1, _MAX_GAPS).astype(np.int64)]
+    whole multiple n·P of the refresh P, give or take the row grid (a change is seen
+    at the first row after its refresh). A quantised, slowly moving temperature
+    repeats its value for several refreshes, so the gaps' small percentiles or their
+    minimum give 2P, 5P …, not P. Two steps:
+
+    1. the comb (:func:`_comb`): candidates that fit ≥ :data:`_FIT_MIN` of the gaps
+       within a row. The refresh and its divisors fit every gap; so, locally, do
+       combs that only match the gaps' strides within a row (3 rows against a 1-row
+       refresh, 0.73 s against 0.64 s when the value changes every 7–8 refreshes);
+    2. the lattice (:func:`_lattice`): from the largest candidate down, the first
+       whose whole-run lattice holds ≥ :data:`_LATTICE_MIN` of the changes within a
+       row, and is at least :data:`_MIN_REFRESH_ROWS` rows long, is the refresh
+       (fitted over the whole run).
+
+    Candidates stop at the shortest gap plus a row (no refresh is longer). Changes on
+    consecutive rows (shortest gap one row), or no candidate on its lattice, mean
+    every row is fresh (refresh = dt): a refresh under about two rows cannot be told
+    from the rows."""
+    tc = t[change]
+    gaps = np.diff(tc)
     lo, hi = 1.5 * dt, float(np.min(gaps)) + dt
     if hi <= lo or np.count_nonzero(gaps < lo) > 0.01 * len(gaps):
-        return dt  # changes on consecutive rows: every row is fresh
-    tol = _FIT_ROWS * dt
-    cand = np.geomspace(lo, hi, _CANDIDATES)
-    snapped, fit = np.empty(len(cand)), np.empty(len(cand))
-    for i, p in enumerate(cand):  # each candidate snapped to the comb it selects
-        n = np.maximum(np.round(gaps / p), 1.0)
-        q = float(np.dot(gaps, n) / np.dot(n, n))
-        err = gaps - n * q
-        snapped[i] = q
-        fit[i] = np.count_nonzero(np.abs(err) <= tol) / len(gaps)
-    ok = np.flatnonzero((fit >= _FIT_MIN) & (snapped >= lo))
-    if len(ok) == 0:
-        return dt
-    refresh = float(np.max(snapped[ok]))
-    for limit in (3.5, 10.0):
-        g = gaps[gaps < limit * refresh]
-        k = np.round(g / refresh)
-        if np.sum(k) > 0:
-            refresh = float(np.sum(g) / np.sum(k))
-    return refresh
+        return dt, None  # changes on consecutive rows: every row is fresh
+    if len(gaps) > _MAX_GAPS:  # evenly spread: the whole run, bounded cost
+        gaps = gaps[np.linspace(0, len(gaps) - 1, _MAX_GAPS).astype(np.int64)]
+    snapped, fit = _comb(gaps, dt, lo, hi)
+    # the refresh fits (almost) every gap; with a row's tolerance a short comb fits
+    # most of them by chance, so only the combs that fit nearly as well are tried
+    least = max(_FIT_MIN, float(np.max(fit)) - 0.1)
+    ok = np.sort(snapped[(fit >= least) & (snapped >= _MIN_REFRESH_ROWS * dt)])[::-1]
+    tried = 0
+    covered = math.inf  # the least period the lattices tried so far reached
+    for q in ok.tolist():
+        if q >= covered:
+            continue
+        period, share, reach, phase = _lattice(tc, q, dt)
+        if share >= _LATTICE_MIN and period >= _MIN_REFRESH_ROWS * dt:
+            return period, phase
+        covered = min(q, period) - max(reach, 1e-9 * q)
+        tried += 1
+        if tried >= _MAX_LATTICE_TRIES:
+            break
+    return dt, None
 
 
-def _white_noise(t: FloatArray, temp: FloatArray, refresh_s: float, lsb_c: float) -> float:
-    """White noise of the readings, °C: second differences at a lag of L rows, L·dt the
-    refresh rounded up, so that the three readings come from three different refreshes
-    (no phase to track: a hold never pairs a reading with itself); a linear trend drops
-    out and var = 6σ². Less the quantisation's LSB²/12 (valid while σ ≳ LSB/2; below
-    that the rounding hides the noise and LSB/√12 bounds it)."""
-    dt = float(np.median(np.diff(t)))
-    lag = max(1, math.ceil(refresh_s / dt - 0.01))
-    if len(temp) < 2 * lag + 5:
-        return 0.02
-    d2 = temp[2 * lag:] - 2.0 * temp[lag:-lag] + temp[:-2 * lag]
-    total = float(np.var(d2)) / 6.0
-    return math.sqrt(max(total - lsb_c * lsb_c / 12.0, 0.0))
+#: The window of the local polynomial the white noise is measured about, s, and its
+#: least number of readings (the filter's own share of a reading, h₀, stays ≤ 4 %).
+_NOISE_WINDOW_S = 40.0
+_NOISE_MIN_POINTS = 101
+#: White noise below this many LSB is reported as 0 (hidden by the rounding).
+_NOISE_HIDDEN_LSB = 0.25
+
+
+def _white_noise(t: FloatArray, temp: FloatArray, refresh_s: float, phase_s: float | None,
+                 lsb_c: float) -> float:
+    """White noise of the readings, °C.
+
+    One reading per refresh, taken at the last row before the middle of its slot
+    (refresh instants ``phase_s`` + k·``refresh_s``; every row where ``phase_s`` is
+    None), so that the readings are evenly spaced in the time they were *sampled*
+    (a row's time is up to a refresh later: on a 10 °C/min warm-up that is several
+    LSB of spurious scatter). Their scatter about a local quartic (Savitzky–Golay
+    over ≥ :data:`_NOISE_MIN_POINTS` readings and ≥ :data:`_NOISE_WINDOW_S`), divided
+    by 1 − h₀ (the filter's own share), less the quantisation's LSB²/12. A noiseless
+    rounded temperature scatters at most about LSB²/12 about a smooth curve (a
+    sawtooth whatever its rate), so it reads ≈ 0; a short difference filter reads its
+    regular steps (one LSB every other refresh) as noise. Valid while σ ≳ LSB/2;
+    an estimate below :data:`_NOISE_HIDDEN_LSB` LSB is reported as 0 (the sawtooth's
+    own scatter differs from LSB²/12 by up to ~15 % over a run)."""
+    if phase_s is None:
+        y, spacing = temp, float(np.median(np.diff(t)))
+    else:
+        first = math.ceil((t[0] - phase_s) / refresh_s)
+        mids = phase_s + (np.arange(first, math.floor((t[-1] - phase_s) / refresh_s)) + 0.5) \
+            * refresh_s
+        rows = np.searchsorted(t, mids, side="right") - 1
+        y, spacing = temp[rows[rows >= 0]], refresh_s
+    width = max(_NOISE_MIN_POINTS, int(_NOISE_WINDOW_S / spacing))
+    width += 1 - width % 2
+    if len(y) < 2 * width:
+        if len(y) < 7:
+            return 0.02
+        total = float(np.var(np.diff(y, 2))) / 6.0  # a linear trend drops out
+    else:
+        h0 = float(savgol_coeffs(width, 4)[width // 2])
+        resid = y - savgol_filter(y, width, 4, mode="interp")
+        half = width // 2
+        total = float(np.mean(resid[half:-half] ** 2)) / (1.0 - h0)
+    white = math.sqrt(max(total - lsb_c * lsb_c / 12.0, 0.0))
+    # a noiseless rounded ramp's sawtooth scatters LSB²/12 give or take ~15 % over a run
+    # (σ up to ~LSB/8 from nothing): below LSB/4 the rounding hides the noise
+    return white if white >= _NOISE_HIDDEN_LSB * lsb_c else 0.0
 
 
 def characterise(run: Run, axis: str) -> Readout:
@@ -186,10 +317,10 @@ def characterise(run: Run, axis: str) -> Readout:
     dt = float(np.median(np.diff(t)))
     temp = run.temperature_c
     change = np.flatnonzero(np.diff(temp) != 0) + 1
-    refresh = _refresh_from_changes(t, change, dt) if len(change) > 10 else dt
+    refresh, phase = _refresh_from_changes(t, change, dt) if len(change) > 10 else (dt, None)
     period = dt * round(refresh / dt) if refresh > 1.5 * dt else dt
     lsb = _grid_step(temp[: min(len(temp), 200_000)], floor=1e-7)
-    white = _white_noise(t, temp, refresh, lsb)
+    white = _white_noise(t, temp, refresh, phase, lsb)
     noise = max(math.sqrt(white * white + lsb * lsb / 12.0), lsb / math.sqrt(2)) if lsb > 0 \
         else white
     rate = run.rates_dps[axis]

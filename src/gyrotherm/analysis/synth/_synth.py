@@ -187,6 +187,33 @@ def _play(temperature_c: FloatArray, width_c: float) -> FloatArray:
     return out
 
 
+def row_times(rate_hz: float, duration_s: float, rng: np.random.Generator) -> FloatArray:
+    """Row stamps at ``rate_hz`` over ``duration_s`` (both ends), each jittered by up to
+    ±2 % of a row interval (the first is 0)."""
+    n = int(np.floor(duration_s * rate_hz)) + 1
+    jitter = rng.uniform(-0.02, 0.02, n) / rate_hz
+    t = np.arange(n) / rate_hz + jitter
+    t[0] = 0.0
+    return t
+
+
+def read_temperature(time_s: FloatArray, temperature_c: FloatArray, *, period_s: float,
+                     lsb_c: float, noise_c: float, rng: np.random.Generator) -> FloatArray:
+    """The temperature sensor's readout at the row times ``time_s`` of a true
+    temperature (one value per row): a fresh reading at the first row of each refresh
+    slot floor(t / ``period_s``) (a slot without a row is never seen), the truth at that
+    row plus white noise σ = ``noise_c`` (one draw per fresh reading), rounded to
+    ``lsb_c`` (0: not rounded) and held until the next fresh reading. These three
+    parameters are the truth :func:`gyrotherm.analysis._prep.characterise` is tested
+    against (tests/analysis/test_readout_table.py)."""
+    slot = np.floor(time_s / period_s).astype(np.int64)
+    fresh = np.r_[True, slot[1:] != slot[:-1]]
+    values = temperature_c[fresh] + rng.standard_normal(int(fresh.sum())) * noise_c
+    if lsb_c > 0:
+        values = np.round(values / lsb_c) * lsb_c
+    return np.asarray(values[np.cumsum(fresh) - 1], dtype=np.float64)
+
+
 def synth_run(cfg: SynthConfig, *, seed: int, name: str = "", truth_seed: int = 0) -> tuple[
     Run, SynthTruth
 ]:
@@ -240,15 +267,10 @@ def synth_run(cfg: SynthConfig, *, seed: int, name: str = "", truth_seed: int = 
     if "drift" in effects:
         bias += effects["drift"]["slope_dps_per_h"] * grid / 3600.0
 
-    n = int(np.floor(cfg.duration_s * cfg.rate_hz)) + 1
-    jitter = rng.uniform(-0.02, 0.02, n) / cfg.rate_hz
-    t = np.arange(n) / cfg.rate_hz + jitter
-    t[0] = 0.0
-    case_t = np.interp(t, grid, case)
-    k_read = np.floor(t / cfg.readout_period_s).astype(np.int64)
-    fresh = np.r_[True, k_read[1:] != k_read[:-1]]
-    values = case_t[fresh] + rng.standard_normal(int(fresh.sum())) * cfg.readout_noise_c
-    reading = (np.round(values / cfg.readout_lsb_c) * cfg.readout_lsb_c)[np.cumsum(fresh) - 1]
+    t = row_times(cfg.rate_hz, cfg.duration_s, rng)
+    n = len(t)
+    reading = read_temperature(t, np.interp(t, grid, case), period_s=cfg.readout_period_s,
+                               lsb_c=cfg.readout_lsb_c, noise_c=cfg.readout_noise_c, rng=rng)
 
     dt = 1.0 / cfg.rate_hz
     true_bias = np.interp(t, grid, bias)
