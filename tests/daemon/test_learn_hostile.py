@@ -299,3 +299,27 @@ def test_learn_status_reports_a_state_dir_with_a_refused_file(
     assert main(["learn", "status", "--state-dir", str(d)]) == 2
     assert "cannot be read" in capsys.readouterr().out
     assert main(["learn", "status", "--state-dir", str(tmp_path / "s" / "..")]) == 1
+
+
+@pytest.mark.parametrize(("decision", "field"), [
+    ({"reasons": 5, "warmups": 0}, "decision.reasons"),
+    ({"reasons": {"a": 1}, "warmups": 0}, "decision.reasons"),
+    ({"reasons": ["x"], "warmups": 0, "candidate_heldout_rms_dps": {"x": "0.1"},
+      "current_heldout_rms_dps": {"x": 0.2}}, "decision.candidate_heldout_rms_dps"),
+])
+def test_a_learning_state_with_a_malformed_decision_is_refused_not_fatal(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], decision: dict,
+        field: str) -> None:
+    """The status reads the saved decision's reasons and figures: a state whose decision
+    is valid JSON of another shape is refused naming the field (learn status: exit 2; the
+    daemon: quarantined, learning afresh), not a crash of the daemon's start."""
+    from gyrotherm.cli import main
+    from gyrotherm.compensation._learnstate import LearnState
+
+    store.save_record(tmp_path / STATE, store.LearnRecord(
+        "car", "imu0", LearnState(("x", "y", "z")), decision=decision))
+    assert main(["learn", "status", "--state-dir", str(tmp_path)]) == 2
+    assert f"field {field!r}" in capsys.readouterr().out
+    b = boot(tmp_path, config=FIVE, zero=ZERO)
+    assert len(b.learner.refused) == 1 and field in b.learner.refused[0]
+    assert (tmp_path / f"{STATE}.refused").exists()

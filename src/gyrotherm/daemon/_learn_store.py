@@ -202,6 +202,7 @@ def load_record(path: Path, *, vehicle: str, sensor: str,
     for key in ("decision", "adopted", "config"):
         if doc.get(key) is not None and not isinstance(doc.get(key), dict):
             raise bad(key, f"expected an object or null, got {doc.get(key)!r:.40}")
+    _check_decision(doc.get("decision"), bad)
     adopted = doc.get("adopted")
     if adopted is not None and not (isinstance(adopted.get("time_s"), int | float)
                                     and isinstance(adopted.get("calibration_id"), str)):
@@ -212,6 +213,24 @@ def load_record(path: Path, *, vehicle: str, sensor: str,
     return LearnRecord(vehicle, sensor, learn, power_ons, times["last_time_s"],
                        times["last_wall_s"], times["power_on_time_s"], dict(rejected),
                        doc.get("decision"), adopted, doc.get("config"))
+
+
+def _check_decision(decision: dict[str, Any] | None, bad: Any) -> None:
+    """The fields of a saved :meth:`Decision.to_dict` that the status reads (the learner's
+    :func:`progress`, ``gyrotherm learn status``): ``reasons`` a list of text, the
+    held-out figures per axis numbers (null: not finite when written)."""
+    if decision is None:
+        return
+    reasons = decision.get("reasons")
+    if reasons is not None and not (isinstance(reasons, list)
+                                    and all(isinstance(r, str) for r in reasons)):
+        raise bad("decision.reasons", f"expected a list of text, got {reasons!r:.60}")
+    for key in ("candidate_heldout_rms_dps", "current_heldout_rms_dps"):
+        per_axis = decision.get(key)
+        if per_axis is not None and not (isinstance(per_axis, dict) and all(
+                v is None or (isinstance(v, int | float) and not isinstance(v, bool))
+                for v in per_axis.values())):
+            raise bad(f"decision.{key}", f"expected numbers per axis, got {per_axis!r:.60}")
 
 
 def calibration_text(cal: Calibration) -> tuple[str, str]:
