@@ -323,3 +323,25 @@ def test_a_learning_state_with_a_malformed_decision_is_refused_not_fatal(
     b = boot(tmp_path, config=FIVE, zero=ZERO)
     assert len(b.learner.refused) == 1 and field in b.learner.refused[0]
     assert (tmp_path / f"{STATE}.refused").exists()
+
+
+def test_learn_status_on_a_state_whose_axes_are_not_a_list_names_the_field(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``learn.axes`` of another type is the file's fault (exit 2, the field named), not
+    an internal error of the command; a held-out figure written as null (not finite) is
+    left out of the text, not a crash."""
+    from gyrotherm.cli import main
+    from gyrotherm.compensation._learnstate import LearnState
+
+    rec = store.LearnRecord("car", "imu0", LearnState(("x", "y", "z")), decision={
+        "reasons": ["r"], "warmups": 0, "candidate_heldout_rms_dps": {"x": None, "y": 0.1},
+        "current_heldout_rms_dps": {"x": 0.2, "y": 0.3}})
+    store.save_record(tmp_path / STATE, rec)
+    assert main(["learn", "status", "--state-dir", str(tmp_path)]) == 0
+    assert "learnt vs in use: y 0.1000 vs 0.3000 °/s" in capsys.readouterr().out
+    doc = _state_doc(tmp_path)
+    for axes in (5, "xyz", [["x"]]):
+        doc["learn"]["axes"] = axes
+        (tmp_path / STATE).write_text(json.dumps(doc))
+        assert main(["learn", "status", "--state-dir", str(tmp_path)]) == 2
+        assert "field 'axes'" in capsys.readouterr().out

@@ -39,7 +39,8 @@ def imu_status(path: Path) -> dict[str, Any]:
     if not isinstance(raw, dict) or not isinstance(raw.get("learn"), dict):
         raise CalibrationError(f"{path}: not a learning state")
     vehicle, sensor = str(raw.get("vehicle")), str(raw.get("sensor"))
-    axes = tuple(raw["learn"].get("axes") or ())
+    axes = raw["learn"].get("axes")  # not a list of text: load_record names the field
+    axes = tuple(axes) if isinstance(axes, list) and all(isinstance(a, str) for a in axes) else ()
     record = store.load_record(path, vehicle=vehicle, sensor=sensor, axes=axes)
     assert record is not None
     try:
@@ -118,9 +119,11 @@ def _say(s: dict[str, Any]) -> None:
     print(f"  temperature covered {cover}; start temperatures span {s['start_span_c']:.1f} °C")
     d = s["decision"] or {}
     cand, cur = d.get("candidate_heldout_rms_dps"), d.get("current_heldout_rms_dps")
-    if cand and cur:
+    pairs = [(a, cand[a], cur[a]) for a in cand if a in cur and None not in (
+        cand[a], cur[a])] if cand and cur else []  # null: not finite when written
+    if pairs:
         print("  held-out bias error, learnt vs in use: " + ", ".join(
-            f"{a} {cand[a]:.4f} vs {cur[a]:.4f}" for a in cand if a in cur) + " °/s")
+            f"{a} {x:.4f} vs {y:.4f}" for a, x, y in pairs) + " °/s")
     for reason in d.get("reasons") or ():
         print(f"  {reason}")
     learnt = s["learnt_calibration"]
