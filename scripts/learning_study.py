@@ -138,7 +138,7 @@ def table(results: dict[int, dict[str, dict[int, float]]]) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--set", choices=("dev", "eval"), default="dev",
-                   help="development seeds 1–5 or evaluation seeds 11–20")
+                   help="development seeds 1–10 or evaluation seeds 11–20")
     p.add_argument("--seeds", type=int, nargs="+", help="other seeds (overrides --set)")
     p.add_argument("--json", help="write every figure here")
     p.add_argument("--bias", choices=("default", "small-dt"), default="default",

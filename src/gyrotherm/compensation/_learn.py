@@ -37,7 +37,8 @@ on.
 **Extrapolation** (:func:`validated_extension`): the learnt calibration is clamped outside
 its warm-ups' T range widened on each side by as far as the leave-one-out validation
 itself extrapolated (the furthest warm-up, scored with the others' slopes), when it beat
-no compensation there; else at the data's range, as the autopilots clamp.
+no compensation on that warm-up (scored whole: the rows past the others' range are not
+kept apart); else at the data's range, as the autopilots clamp.
 """
 
 from __future__ import annotations
@@ -408,10 +409,12 @@ def validated_extension(stats: Sequence[WarmupStats], axes: Sequence[str], *,
     """How far (°C, below and above) the learnt T range may be used unclamped: as far as
     the leave-one-power-on-out validation itself extrapolated, and no further.
 
-    On each side, the warm-up that reaches furthest (coldest minimum, hottest maximum) was
-    scored by :func:`decide` with the slopes of the others, unclamped, ``overhang`` °C past
-    their range. That overhang counts as validated when, on every axis of ``axes``, its
-    bias error there beat no compensation by ``margin``
+    On each side, the warm-up that reaches furthest (coldest minimum, hottest maximum) is
+    scored with the slopes of the others, unclamped, ``overhang`` °C past their range (as
+    :func:`decide` scores it when it is held out). That overhang counts as validated when,
+    on every axis of ``axes``, its bias error over the whole warm-up (the statistics keep
+    no rows: its part past the others' range is not scored apart) beat no compensation by
+    ``margin``
     (:func:`heldout_bias_rms` scored on that warm-up alone); else 0 (the range stays the
     data's, clamped, like the autopilots'). Each axis is scored with its ``effects``.
     With fewer than 3 warm-ups, (0, 0)."""

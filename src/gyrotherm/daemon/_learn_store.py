@@ -5,7 +5,8 @@ Two files per IMU::
     <vehicle>.<sensor>.learn-state.json          what was learnt so far
     <vehicle>.<sensor>.learnt-calibration.json   the adopted calibration (once adopted)
 
-The **learning state** (schema ``gyrotherm.learn-state`` version 1)::
+The **learning state** (schema ``gyrotherm.learn-state`` version 1; its ``learn`` object
+has its own version, :data:`~gyrotherm.compensation._learnstate.STATE_VERSION`)::
 
     {"schema": "gyrotherm.learn-state", "version": 1, "vehicle": "veh01", "sensor": "imu0",
      "power_ons": 12, "last_time_s": 5321.5,            # sensor clock, s (null: none)
@@ -18,7 +19,8 @@ The **learning state** (schema ``gyrotherm.learn-state`` version 1)::
      "config": {the [learn] settings} | null,
      "learn": {LearnState.to_dict(): the warm-ups' sufficient statistics}}
 
-The **learnt calibration** is an ordinary calibration file (version 1, paper model) whose
+The **learnt calibration** is an ordinary calibration file (paper model; version 2 when
+effects were learnt, else 1) whose
 ``provenance`` says where it came from: ``learnt_for`` (vehicle, sensor), the power-ons
 used, the temperature coverage, the validation figures (current vs new), the margin, the
 adoption time and the gyrotherm version.
