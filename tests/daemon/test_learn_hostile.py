@@ -345,3 +345,29 @@ def test_learn_status_on_a_state_whose_axes_are_not_a_list_names_the_field(
         (tmp_path / STATE).write_text(json.dumps(doc))
         assert main(["learn", "status", "--state-dir", str(tmp_path)]) == 2
         assert "field 'axes'" in capsys.readouterr().out
+
+
+def test_a_learnt_calibration_its_own_loader_would_refuse_is_not_adopted(
+        tmp_path: Path) -> None:
+    """A learning state whose numbers are finite but not physical (one warm-up's T range
+    −1000…1000 °C: the validated extrapolation widens the learnt range past the
+    calibration loader's −100…200 °C) is not adopted: the running daemon would swap it in
+    and refuse it at its next start. The decision says why; nothing is written."""
+    from gyrotherm.compensation import features
+    from gyrotherm.compensation._learn import WarmupStats
+    from gyrotherm.compensation._learnstate import LearnState
+    from learnkit import EST
+
+    stats = [WarmupStats.from_features(features(power_on(a, seed=700 + k, name=f"w{k}"), EST))
+             for k, a in enumerate(AMBIENTS_C)]
+    good = LearnState(("x", "y", "z"), list(stats))
+    (tmp_path / "good").mkdir()
+    store.save_record(tmp_path / "good" / STATE, store.LearnRecord("car", "imu0", good))
+    assert boot(tmp_path / "good", config=FIVE).learner.adopted  # these warm-ups adopt
+    stats[0] = replace(stats[0], t_range_c=(-1000.0, 1000.0))
+    store.save_record(tmp_path / STATE, store.LearnRecord(
+        "car", "imu0", LearnState(("x", "y", "z"), stats)))
+    b = boot(tmp_path, config=FIVE)
+    assert not b.learner.adopted and not (tmp_path / LEARNT).exists()
+    (why,) = b.learner.record.decision["reasons"]
+    assert "would be refused" in why and "outside [-100, 200]" in why

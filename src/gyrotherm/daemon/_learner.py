@@ -76,7 +76,7 @@ from typing import Any
 from gyrotherm import __version__
 from gyrotherm._errors import CalibrationError
 from gyrotherm.codecs._wire import LearnProgress
-from gyrotherm.compensation import Calibration
+from gyrotherm.compensation import Calibration, parse_calibration
 from gyrotherm.compensation._learn import (
     SETTLE_S,
     Decision,
@@ -548,6 +548,11 @@ class _Job:
                                      **({"device_id": self.device_id} if self.device_id
                                         else {})})
         text, cid = store.calibration_text(cal)
+        try:  # as the next start will read it: never adopt what would then be refused
+            parse_calibration(text, source=str(self.path))
+        except CalibrationError as exc:
+            return _Outcome(d, error=f"the learnt calibration would be refused (nothing "
+                            f"adopted): {exc}")
         try:
             store.write_atomic(self.path, text)
         except OSError as exc:
