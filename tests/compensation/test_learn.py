@@ -16,6 +16,7 @@ from gyrotherm.compensation import RunFeatures, features, fit
 from gyrotherm.compensation._learn import (
     GATES,
     LEARN_SCALING,
+    PAPER,
     WarmupStats,
     basis_slopes,
     decide,
@@ -362,11 +363,11 @@ def test_an_effect_the_paper_model_absorbs_is_not_learnt() -> None:
 
 @pytest.mark.parametrize("seed", [5, 6, 7])
 def test_no_effect_is_learnt_from_a_gyro_without_one(seed: int) -> None:
-    """The simulator's default truth is the paper model: over 3, 10 and 30 power-ons
-    nothing beyond it is learnt (development seeds 1–10 of scripts/learning_study.py:
-    the same, for both gyros), and a test that would have learnt one says why not."""
+    """The simulator's default truth is the paper model: over 10 and 30 power-ons nothing
+    beyond it is learnt (development seeds 1–10 of scripts/learning_study.py: the same, for
+    both gyros, at K = 3, 10 and 30; below 6 warm-ups the sign test cannot pass at all)."""
     stats = [WarmupStats.from_features(features(r, EST)) for r in life(30, seed=seed + 40)]
-    for k in (3, 10, 30):
+    for k in (10, 30):
         d = decide(stats[:k], None, AXES)
         assert not any(d.effects.values()), (k, d.reasons)
 
@@ -398,3 +399,59 @@ def test_a_learnt_effect_survives_its_file_and_the_online_kernel_agrees() -> Non
     for a in AXES:
         offline = cal.bias_series(a, f.temperature_c, f.delta_t_c, f.time_s)[0]
         np.testing.assert_allclose(online[a], offline, rtol=0, atol=1e-9)
+
+
+def test_hostile_sums_are_refused_by_the_gate_not_raised() -> None:
+    """A warm-up whose sums are finite but huge (1e300: a corrupt state that passed the
+    finiteness check) makes the cross-products overflow: decide refuses on conditioning,
+    naming it, instead of raising LinAlgError."""
+    stats = [WarmupStats.from_features(features(r, EST)) for r in life(5, seed=8)]
+    bad = replace(stats[2], szz=tuple(1e300 for _ in stats[2].szz))
+    d = decide([*stats[:2], bad, *stats[3:]], None, AXES)
+    assert not d.adopt and d.reasons[0].startswith("conditioning: ")
+
+
+def test_leave_one_out_scales_with_the_warmups_not_their_square() -> None:
+    """256 warm-ups (the state's bound): the fold slopes come from the pooled sums minus
+    each warm-up's, equal to refitting without it (to 1e-9), and the decision counts the
+    cross-products once per axis (by construction, not by a wall-clock bound)."""
+    from gyrotherm.compensation._learn import _Folds
+
+    base = [WarmupStats.from_features(features(r, EST)) for r in life(8, seed=9)]
+    stats = [replace(base[k % 8], name=f"p{k}") for k in range(256)]
+    folds = _Folds(stats, "x")
+    for k in (0, 100, 255):
+        np.testing.assert_allclose(
+            folds.beta(k, PAPER), slopes([w for j, w in enumerate(stats) if j != k], "x")[0],
+            rtol=1e-9, atol=1e-12)
+    calls = 0
+    real = WarmupStats.within
+
+    def counting(self: WarmupStats, axis: str) -> tuple[np.ndarray, np.ndarray, float]:
+        nonlocal calls
+        calls += 1
+        return real(self, axis)
+
+    WarmupStats.within = counting  # type: ignore[method-assign]
+    try:
+        decide(stats, None, AXES)
+    finally:
+        WarmupStats.within = real  # type: ignore[method-assign]
+    assert calls < 200 * 256  # O(warm-ups) per axis and model: O(warm-ups²) is 7.9e5
+
+
+def test_the_extension_is_validated_with_the_margin_the_decision_used(
+        feats: list[RunFeatures]) -> None:
+    """`[learn] margin_frac` / `learn --margin` reach the widening too: with a margin no
+    extrapolation can meet (99 %) nothing is adopted; with the decision's own margin
+    replaced by 99 % after adopting, the range stays the data's."""
+    stats = [WarmupStats.from_features(f) for f in feats[:10]]
+    d = decide(stats, None, AXES)
+    assert d.margin == 0.10 and d.to_dict()["margin"] == 0.10
+    wide = learnt_calibration(stats, AXES, estimator=EST, decision=d)
+    assert wide.provenance["validated_extrapolation_c"] != [0.0, 0.0]
+    strict = learnt_calibration(stats, AXES, estimator=EST, decision=replace(d, margin=0.99))
+    assert strict.provenance["validated_extrapolation_c"] == [0.0, 0.0]
+    assert (strict.valid_range.t_min_c, strict.valid_range.t_max_c) == tuple(
+        strict.provenance["coverage_c"])
+    assert not decide(stats, None, AXES, margin=0.99).adopt
