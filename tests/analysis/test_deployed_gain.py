@@ -133,3 +133,4 @@ def test_tables_median_range_and_criterion_counted(script: ModuleType) -> None:
     assert zero[1] == "10 s" and zero[4] == "75 % [50–100]" and zero[5] == "1/3"
     assert zero[6] == "0.0300 / 0.0300 → 0.0300 (×1.00 [1.00–1.00])"
     assert zero[8] == "3/6 |"
+    assert script.criterion_table(rows)[2] == "| cubic | 1/3 | 1/3 | 3/3 | 3/3 |"
