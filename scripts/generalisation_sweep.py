@@ -1,7 +1,7 @@
 """Does the diagnosis generalise beyond the catalogue's exact forms? A seeded sweep.
 
     .venv/bin/python scripts/generalisation_sweep.py
-        [--seeds dev|eval|eval1|shapes-dev|shapes-eval|null-eval]
+        [--seeds dev|eval|eval1|shapes-dev|shapes-eval|null-eval|null-confirm]
         [--quick] [--conditions I ...] [--cases NAME ...] [--json OUT]
 
 Per case (what is injected) × condition (sample rate, temperature readout, number
@@ -41,7 +41,8 @@ parameter error. Development seeds (:data:`DEV_SEEDS`) and evaluation seeds
 (:data:`EVAL_SEEDS`, fixed before any result on them) are run and reported
 separately (``--seeds``). The conditions were fixed before any result was seen.
 
-``--seeds null-eval`` (:data:`NULL_EVAL_SEEDS`) is the null case alone at scale: each
+``--seeds null-eval`` and ``null-confirm`` (:data:`NULL_EVAL_SEEDS`,
+:data:`NULL_CONFIRM_SEEDS`) are the null case alone at scale: each
 seed is one device diagnosed once, at one condition (seed *j* of the list at condition
 *j* mod 4), so every condition gets the same number of distinct devices and no device
 is shared between diagnoses; the report adds a table of nulls per condition (false
@@ -88,9 +89,19 @@ NULL_EVAL_SEEDS = tuple(range(5001, 5801))
 adding this line) before any result on them was seen; never used while developing; run
 once. Seed j of the list (0-based) is diagnosed at CONDITIONS[j % 4] with nothing injected:
 200 distinct devices per condition, the 1 °C / 1.3 s / 3-run corner included."""
+NULL_DEV_SEEDS = tuple(range(6001, 6101))
+"""Development seeds for nulls at scale: nothing injected at the corner (CONDITIONS[3]) only,
+diagnosed after the null-eval run at 06c0bb1 named structures at the corner; the readout
+replay of an unexplained structure and the pruning beside a verdict were developed on these."""
+NULL_CONFIRM_SEEDS = tuple(range(7001, 7601))
+"""Fresh null-only evaluation for that change, fixed (the commit adding this line) before
+any result on them was seen; run once. Seed j at CONDITIONS[j % 4]: 150 distinct devices
+per condition."""
+NULL_SETS = (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS)
+"""Null-only sets: one device per diagnosis, conditions in turn."""
 SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "shapes-dev": SHAPE_DEV_SEEDS, "shapes-eval": SHAPE_EVAL_SEEDS,
-             "null-eval": NULL_EVAL_SEEDS}
+             "null-eval": NULL_EVAL_SEEDS, "null-confirm": NULL_CONFIRM_SEEDS}
 DURATION_S = 6000.0
 STEP_AT_C = 30.0
 CHECKED = {
@@ -375,7 +386,7 @@ def sweep(seeds: Sequence[int], *, quick: bool = False, conditions: Sequence[int
     if conditions is not None:
         conds = tuple(CONDITIONS[i] for i in conditions)
     jobs = [(cond, case, seed) for cond in conds for case in cases for seed in seeds]
-    if tuple(seeds) == NULL_EVAL_SEEDS:  # one device per diagnosis, conditions in turn
+    if tuple(seeds) in NULL_SETS:  # one device per diagnosis, conditions in turn
         keep = range(len(CONDITIONS)) if conditions is None else conditions
         jobs = [(CONDITIONS[j % len(CONDITIONS)], CASES[0], seed)
                 for j, seed in enumerate(seeds) if j % len(CONDITIONS) in keep]
@@ -392,8 +403,8 @@ def sweep(seeds: Sequence[int], *, quick: bool = False, conditions: Sequence[int
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
     p.add_argument("--seeds", choices=sorted(SEED_SETS), default="dev",
-                   help="development seeds (default), an evaluation set, or null-eval "
-                   "(nothing injected, one device per diagnosis)")
+                   help="development seeds (default), an evaluation set, or null-eval / "
+                   "null-confirm (nothing injected, one device per diagnosis)")
     p.add_argument("--quick", action="store_true",
                    help="5 cases × 2 conditions instead of 11 × 4")
     p.add_argument("--conditions", type=int, nargs="+", metavar="I",
@@ -422,7 +433,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print("\n".join(_summary(rows, "condition", [c.name for c in CONDITIONS])))
     print()
     print("\n".join(_totals(rows)))
-    if args.seeds == "null-eval":
+    if tuple(SEED_SETS[args.seeds]) in NULL_SETS:
         print()
         print("\n".join(_nulls(rows, [c.name for c in CONDITIONS])))
     declared = [r for r in rows if r["not_resolvable"]]

@@ -14,10 +14,12 @@
    (:mod:`._resolve`: below τ_min, or no better than on readout replays
    without a lag), likewise a hysteresis, and a drift next to a warm-up that
    has not decayed (:mod:`._separable`) — each a ``not_resolvable`` verdict with
-   its reason, not a finding; test residual structure no catalogued effect
+   its reason, not a finding; the effects selected beside one are checked again
+   (:func:`~._select.prune`); test residual structure no catalogued effect
    explains (:mod:`._unexplained`: a spline in T, ΔT or time since power-on,
    reported as an ``unexplained`` finding, not part of the extended model; one
-   narrower than the readout can place is a verdict, :mod:`._resolution`); refit the
+   narrower than the readout can place is a verdict, :mod:`._resolution`, and so is
+   one no better than readout replays without it give, :mod:`._resolve`); refit the
    extended model, replay it through the extended simulator, and report
    (schema ``gyrotherm.diagnosis/1``).
 4. Optionally (:func:`export_calibration`) write the chosen extended model as a
@@ -62,9 +64,10 @@ from gyrotherm.analysis._resolve import (
     drop_readout_hysteresis,
     drop_unresolved_lag,
     lag_limit,
+    readout_structure,
 )
 from gyrotherm.analysis._score import Evaluation, Selector
-from gyrotherm.analysis._select import Selection, select
+from gyrotherm.analysis._select import Selection, prune, select
 from gyrotherm.analysis._separable import drop_inseparable_drift
 from gyrotherm.analysis._shape_check import shape_notes
 from gyrotherm.analysis._to_calibration import EffectsFit, fit_effects
@@ -226,17 +229,23 @@ def diagnose(
     say("selecting effects (leave-one-run-out)")
     selection = select(selector, margin=margin, progress=say)
     base_ev, final_ev = selection.baseline, selection.final
+    limit = lag_limit(readouts, prepared, features=features)
     final_ev, lag_verdict = drop_unresolved_lag(
-        selector, final_ev, lag_limit(readouts, prepared, features=features), readouts,
-        margin=margin, seed=seed)
+        selector, final_ev, limit, readouts, margin=margin, seed=seed)
     final_ev, hyst_verdict = drop_readout_hysteresis(
-        selector, final_ev, lag_limit(readouts, prepared, features=features), readouts,
-        margin=margin, seed=seed)
+        selector, final_ev, limit, readouts, margin=margin, seed=seed)
     final_ev, drift_verdict = drop_inseparable_drift(selector, final_ev)
     verdicts = tuple(v for v in (lag_verdict, hyst_verdict, drift_verdict) if v)
     for v in verdicts:
         notes.append(f"{v.effect} not reported as a physical finding ({v.verdict}): {v.reason}")
         say(notes[-1])
+    if verdicts:  # what was selected beside a left-out effect must still earn its place
+        final_ev, pruned = prune(selector, final_ev, margin=margin)
+        if pruned:
+            notes.append(f"dropped {', '.join(pruned)}: without "
+                         f"{', '.join(v.effect for v in verdicts)} it no longer earns its "
+                         "place (selected beside it)")
+            say(notes[-1])
     say("testing residual structure no catalogued effect explains")
     resolution = Resolution(lsb_c=float(np.median([r.lsb_c for r in readouts])), tau_s=tau_s,
                             hold_s=float(np.median([r.period_s for r in readouts])))
@@ -244,6 +253,10 @@ def diagnose(
     while True:  # a structure the readout cannot place: a verdict, and search without it
         search = search_unexplained(selector, final_ev, margin=margin, variables=variables)
         too_fine = [v for v in (unresolved(u, resolution) for u in search.unexplained) if v]
+        if not too_fine:  # no finer than the readout shows: is it more than the readout's?
+            too_fine = [v for v in (readout_structure(
+                selector, search.catalogued.effects, u, limit, readouts, margin=margin,
+                seed=seed) for u in search.unexplained) if v]
         if not too_fine:
             break
         for v in too_fine:

@@ -32,7 +32,7 @@ lag's τ are what the readout alone produces (:func:`replay_lag`).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -124,6 +124,39 @@ def replay_readout(readouts: Sequence[Readout]) -> Readout:
                    noise_c=float(np.median(white)))
 
 
+def _null_selectors(
+    selector: Selector, rest: dict[str, float], readouts: Sequence[Readout], crossing_s: float,
+    *, seed: int, replays: int,
+) -> Iterator[Selector]:
+    """``replays`` readout replays of the runs with the model ``rest`` (module docstring,
+    steps 1–3), each as a selector on the replayed runs."""
+    from gyrotherm.analysis._select import _refine_all
+
+    tau = float(np.median([np.median(p.delta_t_c[p.rate_c_per_s != 0]
+                                     / p.rate_c_per_s[p.rate_c_per_s != 0])
+                           for p in selector.runs]))
+    truths, _ = step_free(selector.runs, crossing_s)
+    true_runs = []
+    for p, t in zip(selector.runs, truths, strict=True):
+        rate = np.gradient(t, p.time_s)
+        true_runs.append(replace(p, temperature_c=t, rate_c_per_s=rate, delta_t_c=tau * rate))
+    true_sel = Selector(true_runs, selector.scaling)
+    model = _refine_all(true_sel, true_sel.evaluate(rest))
+    noise = float(np.sqrt(model.rss / model.n))
+    readout = replay_readout(readouts)
+    rng = np.random.default_rng(seed)
+    for _ in range(replays):
+        replayed = []
+        for p, tp in zip(selector.runs, true_runs, strict=True):
+            _, x = design(tp.time_s, tp.temperature_c, tp.delta_t_c, selector.scaling,
+                          model.effects)
+            y = x @ model.coefficients + rng.standard_normal(len(p)) * noise
+            temp, rate_c = _smooth(reread(p.time_s, tp.temperature_c, readout, rng))
+            replayed.append(replace(p, temperature_c=temp, rate_c_per_s=rate_c,
+                                    delta_t_c=tau * rate_c, rate_dps=y))
+        yield Selector(replayed, selector.scaling)
+
+
 def replay_lag(
     selector: Selector, final: Evaluation, readouts: Sequence[Readout], crossing_s: float,
     *, seed: int = 0, replays: int = 2, effect: str = "thermal_lag",
@@ -136,30 +169,10 @@ def replay_lag(
     rest = {k: v for k, v in final.effects.items() if k != effect}
     without = _refine_all(selector, selector.evaluate(rest))
     real = without.heldout_rms_dps / final.heldout_rms_dps
-    tau = float(np.median([np.median(p.delta_t_c[p.rate_c_per_s != 0]
-                                     / p.rate_c_per_s[p.rate_c_per_s != 0])
-                           for p in selector.runs]))
-    truths, how = step_free(selector.runs, crossing_s)
-    true_runs = []
-    for p, t in zip(selector.runs, truths, strict=True):
-        rate = np.gradient(t, p.time_s)
-        true_runs.append(replace(p, temperature_c=t, rate_c_per_s=rate, delta_t_c=tau * rate))
-    true_sel = Selector(true_runs, selector.scaling)
-    model = _refine_all(true_sel, true_sel.evaluate(rest))
-    noise = float(np.sqrt(model.rss / model.n))
-    readout = replay_readout(readouts)
-    rng = np.random.default_rng(seed)
+    _, how = step_free(selector.runs, crossing_s)
     gains, taus = [], []
-    for _ in range(replays):
-        replayed = []
-        for p, tp in zip(selector.runs, true_runs, strict=True):
-            _, x = design(tp.time_s, tp.temperature_c, tp.delta_t_c, selector.scaling,
-                          model.effects)
-            y = x @ model.coefficients + rng.standard_normal(len(p)) * noise
-            temp, rate_c = _smooth(reread(p.time_s, tp.temperature_c, readout, rng))
-            replayed.append(replace(p, temperature_c=temp, rate_c_per_s=rate_c,
-                                    delta_t_c=tau * rate_c, rate_dps=y))
-        null_sel = Selector(replayed, selector.scaling)
+    for null_sel in _null_selectors(selector, rest, readouts, crossing_s, seed=seed,
+                                    replays=replays):
         null_without = _refine_all(null_sel, null_sel.evaluate(rest))
         search = effect if effect in TAU_GRIDS else None
         null_with = _refine_all(null_sel, null_sel.evaluate({**rest, effect: 0.0},
@@ -167,3 +180,25 @@ def replay_lag(
         gains.append(null_without.heldout_rms_dps / null_with.heldout_rms_dps)
         taus.append(float(null_with.effects[effect]))
     return LagReplay(real, tuple(gains), tuple(taus), how)
+
+
+def replay_spline(
+    selector: Selector, effects: dict[str, float], readouts: Sequence[Readout],
+    crossing_s: float, variable: str, *, seed: int = 0, replays: int = 2,
+) -> tuple[tuple[float, ...], str]:
+    """Null held-out gains of an unexplained spline in ``variable`` (:mod:`._unexplained`)
+    on readout replays of the model ``effects`` without it: on each replay the best
+    ratio of the model's held-out RMS to that with the spline added, or in place of one
+    of the effects (as the search tries it); and how the step-free temperature was made."""
+    from gyrotherm.analysis._unexplained import evaluate_with, knots_for
+
+    _, how = step_free(selector.runs, crossing_s)
+    gains = []
+    for null_sel in _null_selectors(selector, dict(effects), readouts, crossing_s, seed=seed,
+                                    replays=replays):
+        knots = knots_for(null_sel.runs, variable)
+        before = evaluate_with(null_sel, effects, [])
+        trials = [evaluate_with(null_sel, {k: v for k, v in effects.items() if k != name},
+                                [(variable, knots)]) for name in ("", *effects)]
+        gains.append(before.heldout_rms_dps / min(t.heldout_rms_dps for t in trials))
+    return tuple(gains), how

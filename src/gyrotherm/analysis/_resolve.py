@@ -34,23 +34,36 @@ A ``hysteresis`` gets the same replay (:func:`drop_readout_hysteresis`: the
 reading's code steps also switch the direction state): it must beat the null
 gain by the margin.
 
-An unresolved lag or hysteresis is left out of the model and reported as a
-:class:`NotResolvable` verdict ("not resolvable at this readout") with the
-reason, and in the notes.
+An unexplained structure (:mod:`._unexplained`) gets it too
+(:func:`readout_structure`, :func:`~._null_replay.replay_spline`): at a coarse
+readout the T and ΔT terms misfit the staircase, and what they leave follows the
+temperature profile, which every run repeats at about the same times since
+power-on, so a spline in time (or T, ΔT) passes leave-one-run-out. The
+structure must beat, by the margin, the largest gain a spline in its variable
+buys on replays of the model without it.
+
+An unresolved lag, hysteresis or structure is left out of the model and
+reported as a :class:`NotResolvable` verdict ("not resolvable at this readout")
+with the reason, and in the notes. Effects selected beside a left-out one are
+then checked again (:func:`~._select.prune`): one that no longer earns its place
+without it is dropped.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from gyrotherm.analysis._null_replay import replay_lag
+from gyrotherm.analysis._null_replay import replay_lag, replay_spline
 from gyrotherm.analysis._prep import BLOCK_S, Prepared, Readout
 from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._stats import RATE_THRESHOLD_C_PER_S
+
+if TYPE_CHECKING:
+    from gyrotherm.analysis._unexplained import Unexplained
 
 VERDICT = "not resolvable at this readout"
 NULL_REPLAYS = 2
@@ -184,3 +197,29 @@ def drop_readout_hysteresis(
     params = {"transition_c": float(width), "heldout_gain": rep.real_gain,
               "null_gain": rep.null_gain}
     return without, NotResolvable("hysteresis", params, reason)
+
+
+def readout_structure(
+    selector: Selector, effects: Mapping[str, float], u: Unexplained, limit: LagLimit,
+    readouts: Sequence[Readout], *, margin: float = 0.10, seed: int = 0,
+) -> NotResolvable | None:
+    """The verdict for the unexplained structure ``u`` found on top of the model
+    ``effects`` when its held-out gain is not ``margin`` above what :data:`NULL_REPLAYS`
+    readout replays of that model, with no structure, give a spline in the same
+    variable (:func:`~._null_replay.replay_spline`): at a coarse readout the T and ΔT
+    terms misfit the staircase, and what they leave follows the profile, which every
+    run repeats at the same times since power-on; else None."""
+    gains, how = replay_spline(selector, dict(effects), readouts, limit.lsb_crossing_s,
+                               u.variable, seed=seed, replays=NULL_REPLAYS)
+    null = max(gains)
+    if u.gain >= (1.0 + margin) * null:
+        return None
+    reason = (f"a structure in {u.variable} over [{u.where[0]:.3g}, {u.where[1]:.3g}], "
+              f"held-out gain ×{u.gain:.3f}, but replays of the runs' readout (hold "
+              f"{limit.hold_s:.2f} s, LSB crossing {limit.lsb_crossing_s:.1f} s on the ramps; "
+              f"from the {how}) on the model without it already give a spline in "
+              f"{u.variable} ×{null:.3f}: not ×{1.0 + margin:.2f} above what the readout "
+              "alone produces")
+    return NotResolvable(f"unexplained:{u.variable}",
+                         {"where_low": u.where[0], "where_high": u.where[1], "gain": u.gain,
+                          "null_gain": null}, reason)

@@ -150,6 +150,29 @@ def select(
     return Selection(baseline, current, tuple(steps), alone, tried)
 
 
+def prune(selector: Selector, current: Evaluation, *, margin: float = 0.10
+          ) -> tuple[Evaluation, tuple[str, ...]]:
+    """The backward pass of :func:`select` on ``current``: drop, one at a time, the effects
+    that no longer earn their place (the entry criteria against the model without them),
+    e.g. once an effect they were selected with was left out as not resolvable; the
+    model that remains and what was dropped."""
+    need = math.ceil(len(selector.runs) / 2)
+    dropped: list[str] = []
+    changed = True
+    while changed and current.effects:
+        changed = False
+        for name in list(current.effects):
+            rest = {k: v for k, v in current.effects.items() if k != name}
+            without = _refine_all(selector, selector.evaluate(rest))
+            ratio, improved, dbic = _compare(without, current)
+            if not (ratio >= 1.0 + margin and improved >= need and dbic < 0.0):
+                current = without
+                dropped.append(name)
+                changed = True
+                break
+    return current, tuple(dropped)
+
+
 def _simplest_best(
     passing: Sequence[tuple[tuple[str, ...], Evaluation]],
     passes: Callable[[Evaluation, Evaluation], bool],
