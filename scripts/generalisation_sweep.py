@@ -93,7 +93,7 @@ NULL_DEV_SEEDS = tuple(range(6001, 6101))
 """Development seeds for nulls at scale: nothing injected at the corner (CONDITIONS[3]) only,
 diagnosed after the null-eval run at 06c0bb1 named structures at the corner; the readout
 replay of an unexplained structure and the pruning beside a verdict were developed on these."""
-NULL_CONFIRM_SEEDS = tuple(range(7001, 7601))
+NULL_CONFIRM_SEEDS = tuple(range(8001, 8601))
 """Fresh null-only evaluation for that change, fixed (the commit adding this line) before
 any result on them was seen; run once. Seed j at CONDITIONS[j % 4]: 150 distinct devices
 per condition."""

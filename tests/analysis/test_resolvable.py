@@ -30,7 +30,7 @@ NULL_EVAL_SEEDS = tuple(range(5001, 5801))
 before any result on them was seen; seed j at the sweep's condition j % 4."""
 NULL_DEV_SEEDS = tuple(range(6001, 6101))
 """Development seeds for nothing injected at the corner (after the null-eval run)."""
-NULL_CONFIRM_SEEDS = tuple(range(7001, 7601))
+NULL_CONFIRM_SEEDS = tuple(range(8001, 8601))
 """Fresh nulls for the change developed on NULL_DEV_SEEDS: fixed (the commit adding this
 line) before any result on them was seen."""
 CORNER = 3
