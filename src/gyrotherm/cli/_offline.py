@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -57,14 +58,19 @@ def cmd_sim_chamber(args: argparse.Namespace) -> int:
                         hold_s=args.hold_s, validation=args.validation,
                         gyro=profile.gyro, chamber=profile.chamber,
                         progress=progress("simulating", quiet=args.quiet))
+    return write_runs(runs, out, args.json)
+
+
+def write_runs(runs: Sequence[Run], out: Path, json_target: str | None) -> int:
+    """Write ``runs`` as run files in ``out``: a line each, or ``--json``'s list."""
     written = []
     for run in runs:
         path = write_run(run, out / f"{run.name}.csv")
         written.append({"path": str(path), "rows": len(run), "duration_s": run.duration_s})
-        if not args.json:
+        if not json_target:
             print(f"wrote {path} ({len(run)} rows, {run.duration_s / 3600:.2f} h)")
-    if args.json:
-        conv.emit_json({"runs": written}, args.json)
+    if json_target:
+        conv.emit_json({"runs": written}, json_target)
     return 0
 
 
@@ -319,9 +325,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                     help="simulator profile: default, or tested against measurements "
                     "(tang2013, bmi270: what beat its null tests; docs/findings.md §7)")
     ch.set_defaults(func=cmd_sim_chamber)
+    from gyrotherm.cli import _simlife
     from gyrotherm.cli import _stream as _stream_cli
 
     _stream_cli.register(sim_sub)
+    _simlife.register(sim_sub)
 
     f = sub.add_parser("fit", help="fit a bias model to run files and write a calibration")
     f.add_argument("runs", nargs="+", help="run files, delimited text, candump logs, flight logs "
