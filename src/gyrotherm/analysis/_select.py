@@ -126,18 +126,10 @@ def select(
             f"(held-out gain {ratio:.3f})")
         current = refined
     # backward pass: drop effects that no longer earn their place
-    changed = True
-    while changed and current.effects:
-        changed = False
-        for name in list(current.effects):
-            rest = {k: v for k, v in current.effects.items() if k != name}
-            without = _refine_all(selector, selector.evaluate(rest))
-            if not passes(without, current):
-                say(f"dropped {name} (redundant given the others)")
-                current = without
-                steps = [s for s in steps if s.effect != name]
-                changed = True
-                break
+    current, dropped = prune(selector, current, margin=margin)
+    for name in dropped:
+        say(f"dropped {name} (redundant given the others)")
+    steps = [s for s in steps if s.effect not in dropped]
     if _lag_only_times_hysteresis(selector, current, passes):
         say("dropped thermal_lag (with the hysteresis on the sensed temperature it buys "
             "nothing: it only delayed the hysteresis)")
