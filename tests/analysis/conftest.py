@@ -9,15 +9,27 @@ from types import ModuleType
 
 import pytest
 
-SWEEP_SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "generalisation_sweep.py"
+SCRIPTS = Path(__file__).resolve().parents[2] / "scripts"
+
+
+def load_script(name: str) -> ModuleType:
+    """``scripts/<name>.py`` as a module named ``name`` (registered in ``sys.modules``:
+    its dataclasses look their module up)."""
+    spec = importlib.util.spec_from_file_location(name, SCRIPTS / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
 
 
 @pytest.fixture(scope="session")
 def sweep() -> ModuleType:
     """``scripts/generalisation_sweep.py`` as a module (its seeds, cases and conditions)."""
-    spec = importlib.util.spec_from_file_location("generalisation_sweep", SWEEP_SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["generalisation_sweep"] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
+    return load_script("generalisation_sweep")
+
+
+@pytest.fixture(scope="session")
+def deployed_gain() -> ModuleType:
+    """``scripts/deployed_gain.py`` as a module."""
+    return load_script("deployed_gain")

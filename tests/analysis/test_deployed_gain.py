@@ -11,26 +11,17 @@ hand-made rows."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
 from types import ModuleType
 from typing import Any
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "deployed_gain.py"
 WINDOW = 300.0
 
 
 @pytest.fixture(scope="module")
-def script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("deployed_gain", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["deployed_gain"] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
+def script(deployed_gain: ModuleType) -> ModuleType:
+    return deployed_gain
 
 
 def _row(script: ModuleType, effect: str) -> dict[str, Any]:
