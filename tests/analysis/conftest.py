@@ -33,3 +33,9 @@ def sweep() -> ModuleType:
 def deployed_gain() -> ModuleType:
     """``scripts/deployed_gain.py`` as a module."""
     return load_script("deployed_gain")
+
+
+@pytest.fixture(scope="session")
+def correction_gain() -> ModuleType:
+    """``scripts/correction_gain.py`` as a module."""
+    return load_script("correction_gain")
