@@ -43,8 +43,9 @@ Seed 23 (the daemon test's) was used to try the script, and is not in the list. 
 tables give every cell, and per shape the median and the range (min–max) over the cells
 with a correction, and the number of cells on which the criterion is met.
 
-**Cost**: per cell the diagnosis and its export, and 2 + 2 × 3 streams of the held-out
-run through the pure-Python Pipeline (≈ 1.7 s each in ``deployed_gain``).
+**Cost** (measured on the run of record, 15 cells, 286 s): per cell the diagnosis and its
+export ≈ 3 s, the 2 + 2 × 3 streams of the held-out run through the pure-Python Pipeline
+and the offline scores 13–21 s. The commit in the header is HEAD when the run started.
 """
 
 from __future__ import annotations
@@ -281,6 +282,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         rows = [r for d in docs for r in d["rows"]]
         heads = [d["header"] for d in docs]
     else:
+        at_commit = dg.commit()
         start = time.perf_counter()
         rows = run_rows(args.shapes, args.seeds)
         elapsed = time.perf_counter() - start
@@ -290,14 +292,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         if list(args.shapes) != list(SHAPES):
             cmd += " --shapes " + " ".join(args.shapes)
         s = dg.FULL
-        heads = [f"`.venv/bin/python {cmd}` at commit {dg.commit()}, seeds "
+        heads = [f"`.venv/bin/python {cmd}` at commit {at_commit}, seeds "
                  f"{', '.join(map(str, args.seeds))}, {s.n_train} training runs + 1 held-out, "
                  f"{s.duration_s:g} s at {s.rate_hz:g} Hz, {elapsed:.0f} s"]
         if args.json:
             out = Path(args.json)
             out.parent.mkdir(parents=True, exist_ok=True)
             out.write_text(json.dumps({"header": heads[0], "seeds": list(args.seeds),
-                                       "commit": dg.commit(), "elapsed_s": elapsed,
+                                       "commit": at_commit, "elapsed_s": elapsed,
                                        "rows": rows}, indent=2) + "\n", encoding="utf-8")
     print("\n".join(heads))
     print()
