@@ -6,7 +6,11 @@ terms in centred variables and the fit solves min ‖A_r c − y_r‖² per axis
 (``numpy.linalg.lstsq``, an SVD: no normal equations, no squared condition
 number). Methods:
 
-* ``pooled``: one least-squares fit over the rows of all runs stacked;
+* ``offsets`` (``gyrotherm fit``'s default; this module's functions default to
+  ``pooled``, as before): one least-squares fit over all runs on 1-s blocks with one
+  switch-on offset per run, the constant term their mean
+  (:mod:`gyrotherm.compensation._fit_offsets`; what ``diagnose --calibration`` fits);
+* ``pooled``: one least-squares fit over the rows of all runs stacked, one intercept;
 * ``paper-average``: Tang et al.'s eq. (12): the mean of the per-run
   coefficient vectors (Table 1 → eq. 12 is exactly that column mean). With a
   common scaling the mean of centred coefficients equals the mean of the
@@ -32,6 +36,7 @@ from gyrotherm import __version__
 from gyrotherm._errors import CalibrationError
 from gyrotherm.codecs import Run
 from gyrotherm.compensation._calibration import Calibration, ValidRange
+from gyrotherm.compensation._fit_offsets import solve_offsets
 from gyrotherm.compensation._metrics import ErrorMetrics, RunScore
 from gyrotherm.compensation._models import ModelSpec, Scaling, get_model
 from gyrotherm.compensation._zero import ZeroConfig, ZeroSeries, zero_series
@@ -39,8 +44,8 @@ from gyrotherm.estimators import EstimatorConfig, estimate_series
 
 FloatArray = NDArray[np.float64]
 _G = TypeVar("_G", bound=np.generic)
-Method = Literal["pooled", "paper-average"]
-METHODS: tuple[Method, ...] = ("pooled", "paper-average")
+Method = Literal["offsets", "pooled", "paper-average"]
+METHODS: tuple[Method, ...] = ("offsets", "pooled", "paper-average")
 
 
 @dataclass(frozen=True)
@@ -193,7 +198,9 @@ def fit(
     scaling = scaling or default_scaling(runs)
     coefficients: dict[str, tuple[float, ...]] = {}
     for axis in axes:
-        if method == "pooled":
+        if method == "offsets":
+            c, _ = solve_offsets(spec, scaling, runs, axis)
+        elif method == "pooled":
             c = _solve(spec, scaling, runs, axis)
         else:
             c = mean_coefficients([_solve(spec, scaling, [r], axis) for r in runs])
@@ -228,7 +235,7 @@ def fit_per_run(
 ) -> list[Calibration]:
     """One fit per run, all with the same scaling (Table 1)."""
     scaling = scaling or default_scaling(runs)
-    return [fit([r], model, estimator=estimator, scaling=scaling) for r in runs]
+    return [fit([r], model, estimator=estimator, method="pooled", scaling=scaling) for r in runs]
 
 
 @dataclass(frozen=True)
