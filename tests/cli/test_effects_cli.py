@@ -72,7 +72,7 @@ def test_fit_effects_refuses_unknown_names_and_other_models(
     assert main(["-q", "fit", "a.csv", "--effects", "creep", "--out", out]) == 2
     assert "--effects 'creep': unknown ['creep']; known: thermal_lag," in capsys.readouterr().err
     assert main(["-q", "fit", "a.csv", "--effects", "drift", "--model", "t3", "--out", out]) == 2
-    assert "not --model t3 --method pooled" in capsys.readouterr().err
+    assert "not --model t3 --method auto" in capsys.readouterr().err
     assert not Path(out).exists()
 
 

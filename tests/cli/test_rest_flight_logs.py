@@ -55,8 +55,10 @@ def kept_mask(t: np.ndarray, report: dict[str, object]) -> np.ndarray:
 
 def _fit_json(path: Path, tmp: Path, capsys: pytest.CaptureFixture[str]) -> dict[str, object]:
     out = tmp / f"fit-{path.suffix[1:]}.json"
+    # t2: one 600-s flight does not determine the paper model's ΔT terms (its fit reaches
+    # the 30 °/s plausibility bound that evaluate enforces); these tests are about rest
     assert main(["-q", "fit", str(path), "--out", str(tmp / f"cal-{path.suffix[1:]}.json"),
-                 "--force", "--json", str(out)]) == 0, capsys.readouterr().err
+                 "--model", "t2", "--force", "--json", str(out)]) == 0, capsys.readouterr().err
     doc: dict[str, object] = json.loads(out.read_text())
     return doc
 

@@ -71,26 +71,49 @@ def damage_notes(path: str, runs: Sequence[Run]) -> list[str]:
     return notes
 
 
-def add_estimator_options(parser: argparse.ArgumentParser) -> None:
+def add_estimator_options(parser: argparse.ArgumentParser, *, auto: bool = False) -> None:
+    """The estimator's options; ``auto``: each defaults to None, and with none of them
+    given the command chooses the settings from the runs' readout
+    (:func:`estimator_is_auto`)."""
     d = EstimatorConfig()
-    g = parser.add_argument_group("ΔT estimator (stored in the calibration)")
-    g.add_argument("--tau-s", type=float, default=d.tau_s,
+    g = parser.add_argument_group(
+        "ΔT estimator (stored in the calibration)" + (
+            "; with none of these, every setting comes from the runs' temperature readout "
+            "(refresh, LSB, noise; τ from a chamber_c column, else 120 s), as 'diagnose "
+            "--calibration' chooses it; with any of them, the others take the defaults shown"
+            if auto else ""))
+
+    def default(value: float) -> float | None:
+        return None if auto else value
+
+    g.add_argument("--tau-s", type=float, default=default(d.tau_s),
                    help=f"thermal time constant, s: ΔT = τ·dT/dt (default {d.tau_s:g})")
-    g.add_argument("--temperature-noise-c", type=float, default=d.noise_c,
+    g.add_argument("--temperature-noise-c", type=float, default=default(d.noise_c),
                    help=f"sensor noise std, °C (default {d.noise_c:g})")
-    g.add_argument("--temperature-lsb-c", type=float, default=d.quantisation_c,
+    g.add_argument("--temperature-lsb-c", type=float, default=default(d.quantisation_c),
                    help=f"sensor resolution, °C (default {d.quantisation_c:g})")
-    g.add_argument("--process-noise", type=float, default=d.process_noise_c2_per_s3,
+    g.add_argument("--process-noise", type=float, default=default(d.process_noise_c2_per_s3),
                    help=f"jerk spectral density q, °C²/s³ (default {d.process_noise_c2_per_s3:g})")
-    g.add_argument("--update-period-s", type=float, default=d.update_period_s,
-                   help="feed the filter a reading at most this often, s (0 = every row)")
+    g.add_argument("--update-period-s", type=float, default=default(d.update_period_s),
+                   help="feed the filter a reading at most this often, s (0 = every row; "
+                   f"default {d.update_period_s:g})")
+
+
+_ESTIMATOR_OPTIONS = {"tau_s": "tau_s", "temperature_noise_c": "noise_c",
+                      "temperature_lsb_c": "quantisation_c",
+                      "process_noise": "process_noise_c2_per_s3",
+                      "update_period_s": "update_period_s"}
+"""Option destination → :class:`EstimatorConfig` field."""
+
+
+def estimator_is_auto(args: argparse.Namespace) -> bool:
+    """True when the command chooses the estimator from the readout: it offers that
+    (``add_estimator_options(auto=True)``) and none of the options was given."""
+    return all(getattr(args, k, 0.0) is None for k in _ESTIMATOR_OPTIONS)
 
 
 def estimator_from_args(args: argparse.Namespace) -> EstimatorConfig:
-    return EstimatorConfig(
-        tau_s=args.tau_s,
-        noise_c=args.temperature_noise_c,
-        quantisation_c=args.temperature_lsb_c,
-        process_noise_c2_per_s3=args.process_noise,
-        update_period_s=args.update_period_s,
-    )
+    """The estimator the options give (an option not given: its default)."""
+    d = EstimatorConfig()
+    return EstimatorConfig(**{f: getattr(d, f) if getattr(args, k) is None else getattr(args, k)
+                              for k, f in _ESTIMATOR_OPTIONS.items()})

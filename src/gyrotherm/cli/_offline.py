@@ -8,7 +8,7 @@ import sys
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 from gyrotherm._errors import ConfigError
 from gyrotherm.cli import _conventions as conv
@@ -16,6 +16,7 @@ from gyrotherm.cli import _fitgates, _fitrest, _identity, _paper, _pool, _prep
 from gyrotherm.cli._common import (
     add_estimator_options,
     estimator_from_args,
+    estimator_is_auto,
     progress,
 )
 from gyrotherm.cli._inputs import add_input_options, load_inputs, recorded_options
@@ -37,8 +38,13 @@ from gyrotherm.compensation import (
     removed_bias,
     score,
 )
+from gyrotherm.compensation._fit import Method
+from gyrotherm.compensation._fit_offsets import choose_method
 from gyrotherm.compensation._quality import Gate
 from gyrotherm.estimators import EstimatorConfig
+
+if TYPE_CHECKING:  # the analysis package is loaded only when fit chooses the estimator
+    from gyrotherm.analysis._readout_estimator import ChosenEstimator, RunReadout
 
 # gyrotherm.sim (and scipy.signal with it) is imported inside the commands that
 # simulate: building the parser must not load the simulator (``gyrotherm run`` builds
@@ -89,8 +95,17 @@ def cmd_fit(args: argparse.Namespace) -> int:
     names = _effect_names(args)
     conv.check_runs(args.runs, command="fit")
     conv.check_json_target(args.json)
+    logs, failed_first, args.estimator_record = list(args.runs), [], None
+    if estimator_is_auto(args):  # a first pass characterises the readouts
+        first = _prep.load(args, _prep.prep_from_args(args, keep_rows=False, readout=True))
+        chosen = _chosen_estimator(first.readouts, quiet=args.quiet)
+        est, logs, failed_first = chosen.estimator, first.paths, first.failed
+        args.estimator_record = chosen.to_dict()
     # read, rest detection and T/ΔT per log on the workers (--jobs, --dask-scheduler)
-    loaded = _prep.load(args, _prep.prep_from_args(args, estimator=est, keep_rows=False))
+    loaded = _prep.load(args, _prep.prep_from_args(args, estimator=est, keep_rows=False),
+                        logs)
+    if failed_first:  # the logs the first pass could not read: exit 2 once the rest is written
+        loaded = replace(loaded, failed=[*failed_first, *loaded.failed])
     runs = loaded.runs  # headers: metadata, no rows
     _identity.check_vehicles(runs, pool=args.pool_vehicles)
     _identity.check_autopilot_frames(runs)
@@ -132,6 +147,39 @@ _SINGLE_KEYS = ("calibration", "model", "method", "coefficients_physical", "per_
 """With one device, ``--json`` also has its calibration's keys at the top level."""
 
 
+def _chosen_estimator(readouts: Sequence[RunReadout], *, quiet: bool) -> ChosenEstimator:
+    """The estimator from the readouts (none of the estimator options given), said on
+    stderr unless ``-q``."""
+    from gyrotherm.analysis._readout_estimator import estimator_of
+
+    chosen = estimator_of(readouts)
+    if not quiet:
+        print(f"note: {chosen.describe()}", file=sys.stderr)
+    return chosen
+
+
+def _method(args: argparse.Namespace, feats: Sequence[RunFeatures]) -> Method:
+    """``--method``, with ``auto`` resolved on the runs (:func:`choose_method`), said on
+    stderr unless ``-q``."""
+    if args.method != "auto":
+        return cast(Method, args.method)
+    method, share = choose_method(feats)
+    why = ("each run spans temperature: one offset per run" if method == "offsets" else
+           "isothermal runs: the T terms come from the levels between runs, one intercept")
+    if not args.quiet:
+        print(f"note: method {method}: {share:.0%} of the temperature variance is within "
+              f"runs ({why})", file=sys.stderr)
+    return cast(Method, method)
+
+
+def _with_estimator_record(cal: Calibration, args: argparse.Namespace) -> Calibration:
+    """``cal`` with the provenance's ``estimator_chosen`` (how the readout chose it),
+    or ``estimator_options`` (given on the command line)."""
+    record = getattr(args, "estimator_record", None)
+    key = "estimator_chosen" if record is not None else "estimator_options"
+    return replace(cal, provenance={**cal.provenance, key: record or "given"})
+
+
 def _instances(runs: list[Run]) -> dict[str, int]:
     """Per device id, the instance its log gives it (PX4 uORB instance, ArduPilot IMU
     number from 0, a CSV's device order) when every run of the device agrees."""
@@ -152,7 +200,8 @@ def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunF
     the provenance, where ``export`` takes its slot from."""
     if device and not args.json:
         print(f"device {device}: {len(feats)} runs")
-    cal = fit(feats, args.model, estimator=est, method=args.method)
+    method = _method(args, feats)
+    cal = fit(feats, args.model, estimator=est, method=method)
     if device:
         cal = replace(cal, provenance={**cal.provenance, "device_id": device})
     if device and instance is not None:
@@ -161,22 +210,22 @@ def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunF
         cal = replace(cal, provenance={**cal.provenance, **ids})
     if recorded_options(args):
         cal = replace(cal, provenance={**cal.provenance, "input_options": recorded_options(args)})
-    cal = _fitgates.record(cal, gates)
+    cal = _fitgates.record(_with_estimator_record(cal, args), gates)
     scaling = default_scaling(feats)
     per_run = fit_per_run(feats, args.model, estimator=est, scaling=scaling) if len(feats) > 1 \
         else []
     for axis in cal.axes if not args.json else ():
         rows = [(f.name, c) for f, c in zip(feats, per_run, strict=False)]
-        rows.append((f"{args.method}", cal))
+        rows.append((method, cal))
         print(coefficient_table(rows, axis))
         print()
     cal.save(out)
     if not args.json:
-        print(f"wrote {out} (model {args.model}, method {args.method}, "
+        print(f"wrote {out} (model {args.model}, method {method}, "
               f"axes {','.join(cal.axes)})")
     held = []
     if len(feats) > 1 and not args.no_validation:
-        held = leave_one_out(feats, args.model, estimator=est, method=args.method,
+        held = leave_one_out(feats, args.model, estimator=est, method=method,
                              progress=progress("leave-one-run-out", quiet=args.quiet))
         if not args.json:
             print("\nLeave-one-run-out validation (each run scored by a fit without it):")
@@ -184,10 +233,10 @@ def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunF
     if args.report:
         report_dir = (Path(args.report) / _fitrest.safe_device_name(device) if several
                       else args.report)
-        _report(args, cal, feats, title=f"fit: {args.model}, {args.method}",
+        _report(args, cal, feats, title=f"fit: {args.model}, {method}",
                 calibration_path=str(out), report_dir=str(report_dir))
     return {"device": device or None, "calibration": str(out), "path": str(out),
-            "model": args.model, "method": args.method, "axes": list(cal.axes),
+            "model": args.model, "method": method, "axes": list(cal.axes),
             "runs": [f.name for f in feats],
             "coefficients_physical": {a: cal.physical_coefficients(a) for a in cal.axes},
             "per_run": {f.name: {a: c.physical_coefficients(a) for a in c.axes}
@@ -213,7 +262,6 @@ def _effect_names(args: argparse.Namespace) -> tuple[str, ...]:
     """``--effects a,b``: checked before any run is read."""
     from dataclasses import fields
 
-    from gyrotherm._errors import ConfigError
     from gyrotherm.compensation._effects import Effects
 
     if not args.effects:
@@ -224,9 +272,9 @@ def _effect_names(args: argparse.Namespace) -> tuple[str, ...]:
     if bad or not names:
         raise ConfigError(f"--effects {args.effects!r}: unknown {bad or 'empty list'}; "
                           f"known: {', '.join(known)}")
-    if args.model != "paper" or args.method != "pooled":
-        raise ConfigError(f"--effects extends the paper model fitted pooled (one offset per "
-                          f"run): not --model {args.model} --method {args.method}")
+    if args.model != "paper" or args.method not in ("auto", "offsets"):
+        raise ConfigError("--effects extends the paper model fitted with one offset per "
+                          f"run: not --model {args.model} --method {args.method}")
     return tuple(n for n in known if n in names)
 
 
@@ -239,7 +287,7 @@ def _fit_effects(args: argparse.Namespace, est: EstimatorConfig, feats: list[Run
 
     result = fit_effects(feats, {a: names for a in common_axes(feats)}, estimator=est,
                          provenance={"effects_requested": list(names)})
-    cal = _fitgates.record(result.calibration, gates)
+    cal = _fitgates.record(_with_estimator_record(result.calibration, args), gates)
     for axis in cal.axes if not args.json else ():
         print(f"axis {axis}: paper+{'+'.join(names)}: leave-one-run-out RMS (1-s blocks) "
               f"{result.baseline_heldout_rms_dps[axis]:.5g} (paper) → "
@@ -336,8 +384,13 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "(see the input options)")
     f.add_argument("--model", choices=sorted(MODELS), default="paper",
                    help="bias model: paper (T, ΔT), t2/t3 (temperature-only polynomials)")
-    f.add_argument("--method", choices=METHODS, default="pooled",
-                   help="pooled least squares, or paper-average (eq. 12: mean of per-run fits)")
+    f.add_argument("--method", choices=("auto", *METHODS), default="auto",
+                   help="offsets: least squares over all runs on 1-s blocks, one switch-on "
+                   "offset per run, the intercept their mean (what 'diagnose --calibration' "
+                   "fits); pooled: over all rows, one intercept; paper-average (eq. 12: mean "
+                   "of per-run fits); auto (default): offsets when at least half of the "
+                   "temperature variance is within runs (warm-ups, ramps), else pooled "
+                   "(isothermal plateaus)")
     f.add_argument("--out", required=True, metavar="FILE",
                    help="calibration FILE to write (JSON; parent directories created; "
                    "never over a run file)")
@@ -356,7 +409,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     f.add_argument("--report", metavar="DIR",
                    help="also write per-axis figures and report.md to DIR (default: none)")
     _fitgates.add_force_option(f)
-    add_estimator_options(f)
+    add_estimator_options(f, auto=True)
     add_input_options(f)
     _fitrest.add_rest_options(f)
     _pool.add_worker_options(f)

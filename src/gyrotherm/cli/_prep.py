@@ -23,7 +23,7 @@ import resource
 import socket
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -39,7 +39,8 @@ from gyrotherm.compensation._rest import RestConfig, RestReport
 from gyrotherm.estimators import EstimatorConfig
 from gyrotherm.readers import InputSpec, read_runs
 
-if TYPE_CHECKING:  # compensation._fit is imported by the workers when needed
+if TYPE_CHECKING:  # compensation._fit and analysis are imported by the workers when needed
+    from gyrotherm.analysis._readout_estimator import RunReadout
     from gyrotherm.compensation import RunFeatures
 
 
@@ -56,6 +57,9 @@ class Prep:
     """Estimate T and ΔT with this estimator (None: not needed)."""
     keep_rows: bool = True
     """Return whole runs; False: headers only (``Run.slice(0, 0)``)."""
+    readout: bool = False
+    """Characterise each run's temperature readout (``fit`` choosing its estimator:
+    :mod:`gyrotherm.analysis._readout_estimator`)."""
     debug: bool = False
     """Let an unexpected exception through (``gyrotherm --debug``)."""
 
@@ -69,6 +73,7 @@ class LogResult:
     runs: tuple[Run, ...] = ()
     reports: tuple[RestReport | None, ...] = ()
     features: tuple[RunFeatures | None, ...] = ()
+    readouts: tuple[RunReadout | None, ...] = ()
     notes: tuple[str, ...] = ()
     error: str = ""
     worker: str = ""
@@ -109,6 +114,12 @@ def prepare_log(path: str, prep: Prep) -> LogResult:
 
             feats = tuple(features(r, prep.estimator) if w else None
                           for r, w in zip(runs, wanted, strict=True))
+        readouts: tuple[RunReadout | None, ...] = ()
+        if prep.readout:
+            from gyrotherm.analysis._readout_estimator import run_readout
+
+            readouts = tuple(run_readout(r) if w else None  # None: too short
+                             for r, w in zip(runs, wanted, strict=True))
         notes = tuple(damage_notes(path, runs))
         kept = tuple(runs if prep.keep_rows else (r.slice(0, 0) for r in runs))
     except Exception as exc:
@@ -117,7 +128,8 @@ def prepare_log(path: str, prep: Prep) -> LogResult:
         worker, rss = _where()
         return LogResult(path, error=error_line(path, exc), worker=worker, peak_rss_mb=rss)
     worker, rss = _where()
-    return LogResult(path, kept, reports, feats, notes, worker=worker, peak_rss_mb=rss)
+    return LogResult(path, kept, reports, feats, readouts, notes, worker=worker,
+                     peak_rss_mb=rss)
 
 
 def _lost(path: str, why: str) -> LogResult:
@@ -135,6 +147,10 @@ class Loaded:
     failed: list[str]
     workers: dict[str, float]
     """Peak RSS (MB) per worker process that read a log."""
+    readouts: list[RunReadout] = field(default_factory=list)
+    """Per run, its readout (``Prep.readout``; empty when not asked)."""
+    paths: list[str] = field(default_factory=list)
+    """The logs that were read, in input order (the failed ones left out)."""
 
     @property
     def exit_status(self) -> int:
@@ -143,10 +159,10 @@ class Loaded:
 
 
 def prep_from_args(args: argparse.Namespace, *, estimator: EstimatorConfig | None = None,
-                   keep_rows: bool = True) -> Prep:
-    rest = None if getattr(args, "rest", "all") == "all" else rest_config(args)
+                   keep_rows: bool = True, readout: bool = False) -> Prep:
+    rest = None if getattr(args, "rest", "all") == "all" or readout else rest_config(args)
     return Prep(spec=spec_from_args(args), devices=tuple(getattr(args, "device", None) or ()),
-                rest=rest, estimator=estimator, keep_rows=keep_rows,
+                rest=rest, estimator=estimator, keep_rows=keep_rows, readout=readout,
                 debug=bool(getattr(args, "debug", False)))
 
 
@@ -186,6 +202,7 @@ def _selected(args: argparse.Namespace, good: list[LogResult], failed: list[str]
     wanted = {id(run) for run in select_devices(runs, getattr(args, "device", None))}
     reports: list[RestReport] = []
     feats: list[RunFeatures] = []
+    readouts: list[RunReadout] = []
     for r in good:
         for k, run in enumerate(r.runs):
             if id(run) not in wanted:
@@ -194,7 +211,10 @@ def _selected(args: argparse.Namespace, good: list[LogResult], failed: list[str]
                 reports.append(rep)
             if r.features and (f := r.features[k]) is not None:
                 feats.append(f)
-    return Loaded([run for run in runs if id(run) in wanted], reports, feats, failed, peak)
+            if r.readouts and (o := r.readouts[k]) is not None:
+                readouts.append(o)
+    return Loaded([run for run in runs if id(run) in wanted], reports, feats, failed, peak,
+                  readouts, [r.path for r in good])
 
 
 __all__ = [

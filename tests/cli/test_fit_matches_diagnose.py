@@ -1,0 +1,84 @@
+"""``gyrotherm fit`` and ``gyrotherm diagnose --calibration`` give the same paper
+calibration from the same files (issue 19, item 4): the same estimator, chosen from the
+readout; the same fit, one offset per run on 1-s blocks. Data: the independent
+generator (``analysis.synth``), nothing injected, so the diagnosis writes the paper
+model; its readout (0.125 °C refreshed every 1.28 s, a chamber column) is the truth the
+chosen estimator is checked against."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gyrotherm.analysis import SynthConfig
+from gyrotherm.analysis.synth._variants import variant_runs
+from gyrotherm.cli import main
+from gyrotherm.codecs import write_run
+from gyrotherm.compensation import load_calibration
+
+CFG = SynthConfig(duration_s=3000.0, rate_hz=10.0)
+SEED = 5
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
+    d = tmp_path_factory.mktemp("null")
+    runs, _ = variant_runs(CFG, shapes={}, n_runs=4, seed=SEED)
+    return [str(write_run(r, d / f"{r.name}.csv")) for r in runs]
+
+
+@pytest.fixture(scope="module")
+def both(files: list[str], tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, dict]:
+    d = tmp_path_factory.mktemp("cals")
+    a, b = d / "fit.json", d / "diagnose.json"
+    assert main(["-q", "fit", *files, "--out", str(a), "--no-validation"]) == 0
+    assert main(["-q", "diagnose", *files, "--calibration", str(b), "--no-simulation"]) == 0
+    return json.loads(a.read_text()), json.loads(b.read_text())
+
+
+def test_the_diagnosis_found_nothing_so_wrote_the_paper_model(both: tuple[dict, dict]) -> None:
+    _, diag = both
+    assert diag["version"] == 1 and "effects" not in diag
+    assert diag["provenance"]["diagnosis"]["axes"]["x"]["effects"] == []
+
+
+def test_same_estimator_scaling_range_and_coefficients(both: tuple[dict, dict]) -> None:
+    fit, diag = both
+    for key in ("model", "estimator", "scaling", "range"):
+        assert fit[key] == diag[key], key
+    np.testing.assert_allclose(fit["coefficients"]["x"], diag["coefficients"]["x"],
+                               rtol=1e-9, atol=1e-12)
+    assert fit["provenance"]["method"] == "offsets"
+
+
+def test_the_estimator_is_the_generators_readout(both: tuple[dict, dict]) -> None:
+    fit, _ = both
+    est = fit["estimator"]
+    assert est["update_period_s"] == pytest.approx(1.28, rel=0.10)  # the generator's refresh
+    assert est["quantisation_c"] == pytest.approx(0.125, rel=1e-6)  # its LSB
+    chosen = fit["provenance"]["estimator_chosen"]
+    assert chosen["tau_from_chamber"] is True and chosen["runs"] == 4
+
+
+def test_an_estimator_option_given_replaces_the_choice(files: list[str], tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture[str]
+                                                       ) -> None:
+    out = tmp_path / "given.json"
+    assert main(["fit", *files, "--out", str(out), "--no-validation",
+                 "--update-period-s", "1.0"]) == 0
+    assert "note: estimator from the temperature readout" not in capsys.readouterr().err
+    cal = load_calibration(out)
+    assert cal.estimator.update_period_s == 1.0
+    assert cal.estimator.tau_s == 120.0 and cal.estimator.quantisation_c == 0.01  # defaults
+    assert cal.provenance["estimator_options"] == "given"
+
+
+def test_the_choice_is_said(files: list[str], tmp_path: Path,
+                           capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["fit", *files[:2], "--out", str(tmp_path / "c.json"), "--no-validation"]) == 0
+    err = capsys.readouterr().err
+    assert "note: estimator from the temperature readout of 2 run(s): refresh 1.28" in err
+    assert "regressed on the chamber temperature" in err
