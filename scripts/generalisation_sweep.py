@@ -1,7 +1,7 @@
 """Does the diagnosis generalise beyond the catalogue's exact forms? A seeded sweep.
 
     .venv/bin/python scripts/generalisation_sweep.py
-        [--seeds dev|eval|eval1|shapes-dev|shapes-eval|null-eval|null-confirm]
+        [--seeds dev|eval|eval1|shapes-dev|shapes-eval|shapes-eval2|null-eval|null-confirm]
         [--quick] [--conditions I ...] [--cases NAME ...] [--json OUT]
 
 Per case (what is injected) × condition (sample rate, temperature readout, number
@@ -84,6 +84,11 @@ saturating and |ΔT| responses, rate-dependent hysteresis): the shape checks and
 SHAPE_EVAL_SEEDS = (301, 302, 303, 304, 305)
 """Evaluation seeds for those shapes, fixed (the commit adding this line) before the
 shapes existed and before any result on them was seen; run once, reported separately."""
+SHAPE_EVAL2_SEEDS = (321, 322, 323, 324, 325)
+"""Second evaluation set for the shapes (and the two-exponential warm-up beside them), fixed
+(the commit adding this line) before the changes it will score and before any result on it
+was seen: the first set (301–305) has been read, so what is changed after it is scored here,
+once."""
 NULL_EVAL_SEEDS = tuple(range(5001, 5801))
 """Null-only evaluation (issue 19 item 1, "nulls at scale"): 800 seeds, fixed (the commit
 adding this line) before any result on them was seen; never used while developing; run
@@ -101,6 +106,7 @@ NULL_SETS = (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS)
 """Null-only sets: one device per diagnosis, conditions in turn."""
 SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "shapes-dev": SHAPE_DEV_SEEDS, "shapes-eval": SHAPE_EVAL_SEEDS,
+             "shapes-eval2": SHAPE_EVAL2_SEEDS,
              "null-eval": NULL_EVAL_SEEDS, "null-confirm": NULL_CONFIRM_SEEDS}
 DURATION_S = 6000.0
 STEP_AT_C = 30.0
@@ -378,7 +384,7 @@ def commit() -> str:
 def sweep(seeds: Sequence[int], *, quick: bool = False, conditions: Sequence[int] | None = None,
           only: Sequence[str] | None = None) -> list[dict[str, Any]]:
     cases = [c for c in CASES if c.name in QUICK_CASES] if quick else list(CASES)
-    if set(seeds) & {*SHAPE_DEV_SEEDS, *SHAPE_EVAL_SEEDS}:
+    if set(seeds) & {*SHAPE_DEV_SEEDS, *SHAPE_EVAL_SEEDS, *SHAPE_EVAL2_SEEDS}:
         cases = list(SHAPE_CASES)
     if only:
         cases = [c for c in (*CASES, *SHAPE_CASES[1:]) if c.name in only]

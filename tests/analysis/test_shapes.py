@@ -28,6 +28,8 @@ from gyrotherm.analysis.synth._variants import (
 SHAPE_DEV_SEEDS = (31, 32, 33, 34, 35, 36)
 SHAPE_EVAL_SEEDS = (301, 302, 303, 304, 305)
 """Fixed (the commit adding this line) before any result on them was seen."""
+SHAPE_EVAL2_SEEDS = (321, 322, 323, 324, 325)
+"""The second set, fixed (the commit adding this line) before the changes it scores."""
 
 
 def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
@@ -35,6 +37,9 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
     assert sweep.SHAPE_EVAL_SEEDS == SHAPE_EVAL_SEEDS
     used = {*sweep.DEV_SEEDS, *sweep.EVAL_SEEDS, *SHAPE_DEV_SEEDS}
     assert not set(SHAPE_EVAL_SEEDS) & used
+    assert sweep.SHAPE_EVAL2_SEEDS == SHAPE_EVAL2_SEEDS
+    assert not set(SHAPE_EVAL2_SEEDS) & {*used, *SHAPE_EVAL_SEEDS, *sweep.NULL_EVAL_SEEDS,
+                                          *sweep.NULL_DEV_SEEDS, *sweep.NULL_CONFIRM_SEEDS}
 
 
 def test_periodic_t_by_hand() -> None:
