@@ -391,7 +391,8 @@ def sweep(seeds: Sequence[int], *, quick: bool = False, conditions: Sequence[int
     if set(seeds) & {*SHAPE_DEV_SEEDS, *SHAPE_EVAL_SEEDS, *SHAPE_EVAL2_SEEDS}:
         cases = list(SHAPE_CASES)
     if only:
-        cases = [c for c in (*CASES, *SHAPE_CASES[1:]) if c.name in only]
+        by_name = {c.name: c for c in (*CASES, *SHAPE_CASES)}  # two_exp_warmup in both
+        cases = [c for n, c in by_name.items() if n in only]
     conds = CONDITIONS[::3] if quick else CONDITIONS
     if conditions is not None:
         conds = tuple(CONDITIONS[i] for i in conditions)
