@@ -128,7 +128,11 @@ class Case:
     """Variables whose unexplained finding also counts as finding the expected names."""
     proxies: tuple[str, ...] = ()
     """Catalogued names that count as finding an expected ``unexplained:<variable>`` when
-    the finding carries the note that the shape differs (``Finding.shape``)."""
+    the finding carries the note that the shape differs (``Finding.shape``): the nearest
+    catalogued effects of its variable. For a saturating ΔT response: ΔT² (its even
+    part), and, added with SHAPE_EVAL2_SEEDS, a hysteresis (on ramps tanh(ΔT/s) is ±A by
+    the direction of the change, as a hysteresis is; they differ in holds) and a thermal
+    lag (its first-order part is a ΔT term)."""
     bracket: float | None = None
     """An expected unexplained finding's ``where`` must bracket this value."""
 
@@ -158,7 +162,7 @@ SHAPE_CASES = (
     Case("periodic_t", shapes={"periodic_t": {}}, expected=("unexplained:temperature_c",),
          proxies=("cubic",)),
     Case("saturating_dt", shapes={"saturating_dt": {}}, expected=("unexplained:delta_t_c",),
-         proxies=("gradient_quadratic",)),
+         proxies=("gradient_quadratic", "hysteresis", "thermal_lag")),
     Case("abs_dt", shapes={"abs_dt": {}}, expected=("unexplained:delta_t_c",),
          proxies=("gradient_quadratic",)),
     Case("rate_hysteresis", shapes={"rate_hysteresis": {}}, expected=("hysteresis",)),

@@ -196,3 +196,16 @@ def test_catalogued_gradient_quadratic_carries_no_shape_note() -> None:
     (f,) = diagnose(runs, simulate=False).findings
     assert f.effect == "gradient_quadratic" and f.shape == ""
     assert "shape_differs" not in f.to_dict()
+
+
+def test_the_shape_note_describes_a_curve_in_delta_t_by_hand() -> None:
+    from gyrotherm.analysis._shape_check import _gradient_shape
+
+    knots = np.linspace(-6.0, 6.0, 25)
+    sat = _gradient_shape(knots, 0.05 * np.tanh(knots / 1.5))
+    # odd; slope over [4, 6] against [0, 2]: (tanh 4 − tanh 8/3) / (tanh 4/3) = 0.0098/0.8705
+    assert "odd in ΔT" in sat and "it saturates" in sat and "is 1% of that" in sat
+    line = _gradient_shape(knots, 0.01 * knots)
+    assert "odd in ΔT" in line and "is 100% of that" in line and "saturates" not in line
+    even = _gradient_shape(knots, 0.01 * np.abs(knots))
+    assert "even in ΔT" in even and "closest to |ΔT|^1" in even

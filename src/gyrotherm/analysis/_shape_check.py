@@ -38,15 +38,23 @@ from gyrotherm.analysis._unexplained import evaluate_with, knots_for, two_stage
 FloatArray = NDArray[np.float64]
 
 SHAPE_VARIABLE = {"cubic": "temperature_c", "gradient_quadratic": "delta_t_c",
-                  "warmup": "time_since_power_on_s", "drift": "time_since_power_on_s"}
+                  "warmup": "time_since_power_on_s", "drift": "time_since_power_on_s",
+                  "hysteresis": "delta_t_c", "thermal_lag": "delta_t_c"}
 FORMS = {"cubic": "c·(T − T₀)³", "gradient_quadratic": "c·ΔT²", "warmup": "A·exp(−t/τ)",
-         "drift": "s·t"}
+         "drift": "s·t", "hysteresis": "A·h (a memory of the heating/cooling direction)",
+         "thermal_lag": "the paper terms at a lagged temperature"}
+#: Effects that a response to the gradient can stand in for: their note describes the
+#: structure in ΔT. On ramps, a response that saturates in ΔT is ±A by the direction of
+#: the temperature change, as a hysteresis is; a lag's first-order part is a ΔT term.
+DESCRIBE_IN_DT = ("gradient_quadratic", "hysteresis", "thermal_lag")
 SHAPE_MARGIN = 0.03
 POWERS = (0.5, 1.0, 1.5, 2.0, 3.0)
 
 
 def _gradient_shape(knots: FloatArray, values: FloatArray) -> str:
-    """How a curve in ΔT differs from ΔT²: symmetry about 0 and the best power."""
+    """How a curve in ΔT looks: symmetry about 0; an even one's best power, an odd one's
+    saturation (slope far from 0 against slope near 0)."""
+    share = 0.5
     parts = []
     reach = min(-float(knots[0]), float(knots[-1]))
     if reach > 0:
@@ -64,6 +72,20 @@ def _gradient_shape(knots: FloatArray, values: FloatArray) -> str:
                          f"follow; even share {share:.0%})")
         else:
             parts.append(f"neither even nor odd in ΔT (even share {share:.0%})")
+    if reach > 0 and share <= 0.3:  # odd: does it saturate?
+        inner = np.linspace(0.0, reach / 3.0, 8)
+        outer = np.linspace(2.0 * reach / 3.0, reach, 8)
+
+        def odd_at(g: FloatArray) -> FloatArray:
+            return (np.interp(g, knots, values) - np.interp(-g, knots, values)) / 2.0
+
+        s_in = float(odd_at(inner)[-1] - odd_at(inner)[0]) / (reach / 3.0)
+        s_out = float(odd_at(outer)[-1] - odd_at(outer)[0]) / (reach / 3.0)
+        if s_in != 0.0:
+            parts.append(f"its slope over the outer third of the ΔT range is "
+                         f"{s_out / s_in:.0%} of that over the inner third"
+                         + (" (it saturates)" if abs(s_out / s_in) < 0.5 else ""))
+        return "; ".join(parts)
     sse = []
     for p in POWERS:
         x = np.column_stack([np.ones(len(knots)), np.abs(knots) ** p])
@@ -107,7 +129,7 @@ def shape_notes(
                     f"{alt.heldout_rms_dps:.5f} °/s, ×{ratio:.3f}, better on {improved}/"
                     f"{len(selector.runs)} left-out runs; ΔBIC_eff = {dbic:.1f}, which the "
                     "11 spline columns pay for)")
-        if name == "gradient_quadratic":
+        if name in DESCRIBE_IN_DT:
             without = evaluate_with(selector, rest, [])
             resid = selector.residuals(rest, without.coefficients)
             text += "; the structure is " + _gradient_shape(
