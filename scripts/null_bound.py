@@ -48,7 +48,8 @@ in the list. The run of record is run once and every cell is reported.
 
 **Cost** (timed on one cell, seed 23): generator ≈ 1.2 s, API fit 0.4 s and diagnosis
 1.8 s, CSV writing 0.7 s, the fit command 1.8 s, the diagnose command 2.3 s, two streams
-≈ 2 s each: ≈ 12 s per (cell, seed), ≈ 12 min for 12 cells × 5 seeds.
+≈ 2 s each: ≈ 12 s per (cell, seed), ≈ 12 min for 12 cells × 5 seeds; the run of
+record took 653 s (docs/findings.md §6).
 """
 
 from __future__ import annotations
