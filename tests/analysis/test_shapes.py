@@ -205,6 +205,11 @@ def test_the_shape_note_describes_a_curve_in_delta_t_by_hand() -> None:
     sat = _gradient_shape(knots, 0.05 * np.tanh(knots / 1.5))
     # odd; slope over [4, 6] against [0, 2]: (tanh 4 − tanh 8/3) / (tanh 4/3) = 0.0098/0.8705
     assert "odd in ΔT" in sat and "it saturates" in sat and "is 1% of that" in sat
+    # beyond a linear term, as the note sees it: tanh less its least-squares line turns back
+    resid = 0.05 * np.tanh(knots / 1.5)
+    resid = resid - knots * float(resid @ knots / (knots @ knots))
+    turned = _gradient_shape(knots, resid)
+    assert "odd in ΔT" in turned and "it saturates" in turned and "is -" in turned
     line = _gradient_shape(knots, 0.01 * knots)
     assert "odd in ΔT" in line and "is 100% of that" in line and "saturates" not in line
     even = _gradient_shape(knots, 0.01 * np.abs(knots))

@@ -81,10 +81,11 @@ def _gradient_shape(knots: FloatArray, values: FloatArray) -> str:
 
         s_in = float(odd_at(inner)[-1] - odd_at(inner)[0]) / (reach / 3.0)
         s_out = float(odd_at(outer)[-1] - odd_at(outer)[0]) / (reach / 3.0)
-        if s_in != 0.0:
+        if s_in != 0.0:  # the curve is beyond the paper model's linear ΔT term, so a
+            # saturating response turns back at the ends: a ratio below 0.5, even negative
             parts.append(f"its slope over the outer third of the ΔT range is "
                          f"{s_out / s_in:.0%} of that over the inner third"
-                         + (" (it saturates)" if abs(s_out / s_in) < 0.5 else ""))
+                         + (" (it saturates)" if s_out / s_in < 0.5 else ""))
         return "; ".join(parts)
     sse = []
     for p in POWERS:
