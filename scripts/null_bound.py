@@ -72,8 +72,9 @@ from gyrotherm.analysis import SynthConfig, diagnose
 from gyrotherm.analysis._diagnose import export_calibration
 from gyrotherm.analysis._readout_estimator import estimator_of, run_readout
 from gyrotherm.analysis.synth._synth import synth_runs
+from gyrotherm.analysis.synth._variants import variant_runs
 from gyrotherm.cli import main as cli_main
-from gyrotherm.codecs import FrameEncoder, write_run
+from gyrotherm.codecs import FrameEncoder, Run, write_run
 from gyrotherm.compensation import Calibration, features, fit, load_calibration
 from gyrotherm.compensation._fit_offsets import choose_method
 from gyrotherm.sim import frames_from_run
@@ -133,11 +134,36 @@ def _quiet_main(argv: Sequence[str]) -> None:
 def one_cell(refresh_s: float, lsb_c: float, seed: int,
              s: dg.Settings = dg.FULL) -> dict[str, Any]:
     """Everything for one (readout cell, seed): module docstring, steps 1–5."""
-    start = time.perf_counter()
     cfg = SynthConfig(duration_s=s.duration_s, rate_hz=s.rate_hz, readout_period_s=refresh_s,
                       readout_lsb_c=lsb_c, effects={})
     runs, _ = synth_runs(cfg, n_runs=s.n_train + 1, seed=seed)
-    train, held = runs[:-1], runs[-1]
+    return one_device(runs[:-1], runs[-1], {"refresh_s": refresh_s, "lsb_c": lsb_c,
+                                            "seed": seed})
+
+
+def sweep_null(seed: int) -> dict[str, Any]:
+    """A null device of the generalisation sweep's null sets (``--sweep-seeds``): seed j of
+    NULL_EVAL_SEEDS / NULL_CONFIRM_SEEDS at its condition CONDITIONS[j % 4], the sweep's
+    own runs as training (the generator draws them first: one more run leaves them
+    unchanged) and one more run of the device held out."""
+    import generalisation_sweep as gs
+
+    for seeds in gs.NULL_SETS:
+        if seed in seeds:
+            cond = gs.CONDITIONS[seeds.index(seed) % len(gs.CONDITIONS)]
+            break
+    else:
+        raise SystemExit(f"seed {seed} is in no null set of scripts/generalisation_sweep.py")
+    cfg = SynthConfig(duration_s=gs.DURATION_S, rate_hz=cond.rate_hz,
+                      readout_lsb_c=cond.lsb_c, readout_period_s=cond.period_s)
+    runs, _ = variant_runs(cfg, shapes={}, n_runs=cond.n_runs + 1, seed=seed)
+    return one_device(runs[:-1], runs[-1], {"refresh_s": cond.period_s, "lsb_c": cond.lsb_c,
+                                            "seed": seed, "condition": cond.name})
+
+
+def one_device(train: Sequence[Run], held: Run, meta: Mapping[str, Any]) -> dict[str, Any]:
+    """Steps 2–5 of the module docstring on these training runs and held-out run."""
+    start = time.perf_counter()
     # the API
     est = estimator_of([r for r in (run_readout(x) for x in train) if r is not None]).estimator
     feats = [features(r, est) for r in train]
@@ -162,7 +188,7 @@ def one_cell(refresh_s: float, lsb_c: float, seed: int,
     scores = dg.score({k: v.removed_dps for k, v in streamed.items()},
                       held.true_bias_dps["x"], ready)
     return {
-        "refresh_s": refresh_s, "lsb_c": lsb_c, "seed": seed,
+        **meta,
         "method": method, "within_share": share,
         "fit_method_cli": cals["fit"].provenance.get("method"),
         "identical": identical(cals["fit"], cals["diagnose"]),
@@ -223,10 +249,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--seeds", type=int, nargs="+", default=list(SEEDS),
                    help=f"generator seeds (default {' '.join(map(str, SEEDS))}, of record)")
     p.add_argument("--json", metavar="OUT", help="also write every row as JSON here")
+    p.add_argument("--sweep-seeds", type=int, nargs="+", metavar="SEED",
+                   help="instead: these null devices of the generalisation sweep's null sets "
+                   "at their own condition (:func:`sweep_null`), e.g. 8339, the one null "
+                   "false alarm of the confirmation set (docs/findings.md §6)")
     a = p.parse_args(argv)
     head = dg.commit()
     start = time.perf_counter()
     rows: list[dict[str, Any]] = []
+    if a.sweep_seeds:
+        for seed in a.sweep_seeds:
+            r = sweep_null(seed)
+            rows.append(r)
+            print(f"null_bound: sweep null {seed} ({r['condition']}): identical "
+                  f"{r['identical']}, ratio {r['ratio']:.4f}, found {r['found'] or '—'}, "
+                  f"unexplained {r['unexplained'] or '—'}, effects written "
+                  f"{r['effects_cli'] or '—'}, RMS fit / diagnose "
+                  f"{r['scores']['fit'][_OFF]:.5f} / {r['scores']['diagnose'][_OFF]:.5f} °/s "
+                  f"({r['seconds']:.0f} s)", flush=True)
+        print(f"at commit {head}, {time.perf_counter() - start:.0f} s")
+        return 0
     for refresh in REFRESH_S:
         for lsb in LSB_C:
             for seed in a.seeds:
