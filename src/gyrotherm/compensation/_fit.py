@@ -36,7 +36,7 @@ from gyrotherm import __version__
 from gyrotherm._errors import CalibrationError
 from gyrotherm.codecs import Run
 from gyrotherm.compensation._calibration import Calibration, ValidRange
-from gyrotherm.compensation._fit_offsets import solve_offsets
+from gyrotherm.compensation._fit_offsets import solve_offsets, solve_triangular_checked
 from gyrotherm.compensation._metrics import ErrorMetrics, RunScore
 from gyrotherm.compensation._models import ModelSpec, Scaling, get_model
 from gyrotherm.compensation._zero import ZeroConfig, ZeroSeries, zero_series
@@ -137,17 +137,11 @@ def _solve(spec: ModelSpec, scaling: Scaling, runs: Sequence[RunFeatures], axis:
             n += len(block)
     if n < 2 * k:
         raise CalibrationError(f"model {spec.name!r} needs at least {2 * k} rows, got {n}")
-    rk = r[:k, :k]
-    sv = np.linalg.svd(rk, compute_uv=False) if rk.shape[0] == k else np.zeros(k)
-    rank = int(np.sum(sv > max(n, k) * np.finfo(np.float64).eps * (sv[0] if len(sv) else 0)))
-    if rank < k:
-        raise CalibrationError(
+    return solve_triangular_checked(
+        r, k, n, lambda rank: (
             f"model {spec.name!r} is not identifiable from runs "
-            f"{[r.name for r in runs]}: design rank {rank} < {k} terms "
-            "(e.g. no temperature change, or no ΔT variation for a ΔT model)"
-        )
-    coef = np.linalg.solve(rk, r[:k, k])
-    return np.asarray(coef, dtype=np.float64)
+            f"{[x.name for x in runs]}: design rank {rank} < {k} terms "
+            "(e.g. no temperature change, or no ΔT variation for a ΔT model)"))
 
 
 def mean_coefficients(per_run: Sequence[FloatArray]) -> FloatArray:

@@ -22,7 +22,7 @@ measures the actual one).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, cast
 
 import numpy as np
@@ -54,6 +54,20 @@ def block_means(run: RunFeatures, axis: str) -> tuple[FloatArray, FloatArray, Fl
     return mean(t), mean(d), mean(y)
 
 
+def solve_triangular_checked(r: FloatArray, k: int, n: int,
+                             why: Callable[[int], str]) -> FloatArray:
+    """The k coefficients from the triangular factor ``r`` of ``[A | y]`` (n rows; the last
+    column of ``r`` is Qᵀy): ``R[:k, :k] c = Qᵀy[:k]``. Rank: the singular values of
+    ``R[:k, :k]`` (those of A) against ``lstsq``'s default cut ``max(n, k)·ε·σ_max``; below
+    k, :class:`CalibrationError` with ``why(rank)``."""
+    rk = r[:k, :k]
+    sv = np.linalg.svd(rk, compute_uv=False) if rk.shape[0] == k else np.zeros(k)
+    rank = int(np.sum(sv > max(n, k) * np.finfo(np.float64).eps * (sv[0] if len(sv) else 0)))
+    if rank < k:
+        raise CalibrationError(why(rank))
+    return np.asarray(np.linalg.solve(rk, r[:k, k]), dtype=np.float64)
+
+
 def solve_offsets(spec: ModelSpec, scaling: Scaling, runs: Sequence[RunFeatures],
                   axis: str) -> tuple[FloatArray, FloatArray]:
     """The model's coefficients (the constant term = the mean per-run offset) and the
@@ -80,15 +94,11 @@ def solve_offsets(spec: ModelSpec, scaling: Scaling, runs: Sequence[RunFeatures]
     if n - len(runs) < 2 * k:
         raise CalibrationError(f"model {spec.name!r} with one offset per run needs at least "
                                f"{2 * k} 1-s blocks beyond one per run, got {n - len(runs)}")
-    rk = r[:k, :k]
-    sv = np.linalg.svd(rk, compute_uv=False) if rk.shape[0] == k else np.zeros(k)
-    rank = int(np.sum(sv > max(n, k) * np.finfo(np.float64).eps * (sv[0] if len(sv) else 0)))
-    if rank < k:
-        raise CalibrationError(
+    c = solve_triangular_checked(
+        r, k, n, lambda rank: (
             f"model {spec.name!r} is not identifiable from runs {[x.name for x in runs]} "
             f"with one offset per run: design rank {rank} < {k} terms (e.g. no temperature "
-            "change within a run, or no ΔT variation for a ΔT model)")
-    c = np.linalg.solve(rk, r[:k, k])
+            "change within a run, or no ΔT variation for a ΔT model)"))
     offsets = np.array([y_mean - float(a_mean @ c) for a_mean, y_mean in means])
     return np.insert(c, const, float(offsets.mean())), offsets
 
