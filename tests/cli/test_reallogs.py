@@ -9,7 +9,8 @@ DataFlash/rosbag2/MCAP fixtures), which are always there. Each file is also trie
 60 %, cut to its first 100 bytes (inside the header), empty, and renamed (``.renamed``:
 detection by content), copies made here.
 
-On each, ``import``, ``fit``, ``evaluate``, ``diagnose`` and ``export`` run in-process
+On each, ``import``, ``fit`` (and ``fit --force``, past the quality gates), ``evaluate``,
+``diagnose`` and ``export`` run in-process
 (:func:`gyrotherm.cli.main`). Accepted: exit 0 with a usable result (run files that read
 back to the log's own values as pyulog decodes them, calibrations that load, strict JSON
 scores), or exit 2 whose stderr ends in exactly one ``gyrotherm: error:`` line naming the
@@ -149,6 +150,10 @@ def _commands(f: Path, tmp: Path, cal: Path) -> Iterator[tuple[str, list[str], s
     own first calibration when it wrote one, else ``cal``."""
     yield "import", ["import", str(f), "--out", str(tmp / "imported")], ""
     yield "fit", ["fit", str(f), "--out", str(tmp / "cal" / "{device}.json")], ""
+    # the quality gates overridden: what they refused must still end in a clear error
+    # (sample_px4_events.ulg, no row at rest: a numpy ValueError before)
+    yield "fit --force", ["fit", str(f), "--force", "--out",
+                          str(tmp / "forced" / "{device}.json")], ""
     fitted = sorted((tmp / "cal").glob("*.json"))
     use = str(fitted[0] if fitted else cal)
     yield "evaluate", ["evaluate", "--json", str(tmp / "scores.json"), use, str(f)], use
@@ -168,8 +173,8 @@ def test_every_command_exits_cleanly(path: Path, kind: str, tmp_path: Path,
                                  argv)
         elif command == "import":
             _check_import(f, tmp_path / "imported")
-        elif command == "fit":
-            for written in (tmp_path / "cal").glob("*.json"):
+        elif command in ("fit", "fit --force"):
+            for written in (tmp_path / ("cal" if command == "fit" else "forced")).glob("*.json"):
                 assert load_calibration(written).provenance["quality"], written
         elif command == "evaluate":
             doc = json.loads((tmp_path / "scores.json").read_text(),

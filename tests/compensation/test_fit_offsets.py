@@ -89,3 +89,14 @@ def test_auto_picks_offsets_for_runs_spanning_temperature_and_pooled_for_plateau
                     np.zeros(2), {"x": np.zeros(2)})
     assert within_run_share([a, b]) == pytest.approx(4.0 / 104.0)
     assert within_run_share([a]) == 1.0
+
+
+@pytest.mark.parametrize("method", ["offsets", "pooled", "paper-average"])
+def test_no_row_at_rest_is_a_clear_error_not_a_traceback(method: str) -> None:
+    # a 31-s PX4 log (sample_px4_events.ulg of the real-log corpus) left no row at rest,
+    # and `fit --force` went on to a numpy ValueError on an empty array
+    run = _run("moving", 10.0, 40.0, 0.0, rest=np.zeros(6000, dtype=bool))
+    with pytest.raises(CalibrationError, match=r"no row to fit in runs \['moving'\]: rest "
+                                               r"detection kept none"):
+        fit([run], "paper", estimator=EST, method=method)  # type: ignore[arg-type]
+    assert choose_method([run]) == ("pooled", 0.0)

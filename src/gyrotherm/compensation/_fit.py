@@ -156,13 +156,19 @@ def mean_coefficients(per_run: Sequence[FloatArray]) -> FloatArray:
 
 def _extremes(runs: Sequence[RunFeatures]) -> tuple[FloatArray, FloatArray]:
     """Per run (rest rows, runs with none left out): [T min, T max] and [ΔT min, ΔT max]
-    — what the range and the scaling need, without concatenating long logs."""
+    — what the range and the scaling need, without concatenating long logs. No row at
+    all: :class:`CalibrationError` naming the runs (nothing to fit or scale)."""
     t, d = [], []
     for r in runs:
         rt, rd = r.rows(r.temperature_c), r.rows(r.delta_t_c)
         if len(rt):
             t += [float(rt.min()), float(rt.max())]
             d += [float(rd.min()), float(rd.max())]
+    if not t:
+        raise CalibrationError(
+            f"no row to fit in runs {[r.name for r in runs]}: "
+            + ("rest detection kept none of their rows (see its report; --rest all fits "
+               "every row)" if any(r.rest is not None for r in runs) else "they are empty"))
     return np.asarray(t, dtype=np.float64), np.asarray(d, dtype=np.float64)
 
 
