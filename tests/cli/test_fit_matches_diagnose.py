@@ -82,3 +82,35 @@ def test_the_choice_is_said(files: list[str], tmp_path: Path,
     err = capsys.readouterr().err
     assert "note: estimator from the temperature readout of 2 run(s): refresh 1.28" in err
     assert "regressed on the chamber temperature" in err
+
+
+def test_each_device_of_a_log_gets_its_own_readouts_estimator(files: list[str],
+                                                              tmp_path: Path) -> None:
+    # one CSV, two IMUs: A the generator's readout (0.125 °C), B the same runs read at
+    # 0.5 °C. Each calibration of 'fit --out DIR' must be the one 'fit --device ID' writes
+    # (the estimator once came from the median over both devices' runs: LSB of neither)
+    from gyrotherm.codecs import read_run
+
+    lines = ["t,temp,gx,dev,seg"]
+    for dev, lsb in (("A", None), ("B", 0.5)):
+        for f in files[:2]:
+            run = read_run(f)
+            temp = run.temperature_c if lsb is None else np.round(run.temperature_c / lsb) * lsb
+            lines += [f"{t:.17g},{c:.17g},{g:.17g},{dev},{run.name}"
+                      for t, c, g in zip(run.time_s, temp, run.rates_dps["x"], strict=True)]
+    log = tmp_path / "two_imus.csv"
+    log.write_text("\n".join(lines) + "\n")
+    cols = ["--columns", "time=t:s", "temperature=temp:degC", "x=gx:dps", "device=dev",
+            "run=seg", "--no-validation"]
+    assert main(["-q", "fit", str(log), "--out", str(tmp_path / "all") + "/", *cols]) == 0
+    lsbs = {}
+    for dev in ("A", "B"):
+        assert main(["-q", "fit", str(log), "--device", dev, "--out",
+                     str(tmp_path / f"{dev}.json"), *cols]) == 0
+        alone = json.loads((tmp_path / f"{dev}.json").read_text())
+        both = json.loads((tmp_path / "all" / f"{dev}.json").read_text())
+        assert both["estimator"] == alone["estimator"], dev
+        assert both["coefficients"] == alone["coefficients"], dev
+        assert both["provenance"]["estimator_chosen"]["runs"] == 2
+        lsbs[dev] = both["estimator"]["quantisation_c"]
+    assert lsbs == pytest.approx({"A": 0.125, "B": 0.5}, rel=1e-6)

@@ -38,6 +38,9 @@ class RunReadout:
     name: str
     readout: Readout
     tau_blocks: Prepared | None
+    device: str = ""
+    """The run's ``device_id`` (metadata; "" when absent): each device's readout chooses
+    its own calibration's estimator."""
 
 
 @dataclass(frozen=True)
@@ -75,7 +78,7 @@ def run_readout(run: Run, axis: str | None = None) -> RunReadout | None:
         return None
     blocks = (prepare(run, axis, EstimatorConfig(tau_s=DEFAULT_TAU_S))
               if run.chamber_c is not None else None)
-    return RunReadout(run.name, readout, blocks)
+    return RunReadout(run.name, readout, blocks, str(run.metadata.get("device_id", "") or ""))
 
 
 def estimator_of(readouts: Sequence[RunReadout]) -> ChosenEstimator:

@@ -95,15 +95,16 @@ def cmd_fit(args: argparse.Namespace) -> int:
     names = _effect_names(args)
     conv.check_runs(args.runs, command="fit")
     conv.check_json_target(args.json)
-    logs, failed_first, args.estimator_record = list(args.runs), [], None
+    logs, failed_first = list(args.runs), []
+    chosen: dict[str, ChosenEstimator] = {}  # per device, when fit chooses
     if estimator_is_auto(args):  # a first pass characterises the readouts
         first = _prep.load(args, _prep.prep_from_args(args, keep_rows=False, readout=True))
-        chosen = _chosen_estimator(first.readouts, quiet=args.quiet)
-        est, logs, failed_first = chosen.estimator, first.paths, first.failed
-        args.estimator_record = chosen.to_dict()
+        chosen = _chosen_estimators(first.runs, first.readouts, quiet=args.quiet)
+        logs, failed_first = first.paths, first.failed
+    ests = {device: c.estimator for device, c in chosen.items()}
     # read, rest detection and T/ΔT per log on the workers (--jobs, --dask-scheduler)
-    loaded = _prep.load(args, _prep.prep_from_args(args, estimator=est, keep_rows=False),
-                        logs)
+    loaded = _prep.load(args, _prep.prep_from_args(args, estimator=est, keep_rows=False,
+                                                   device_estimators=ests), logs)
     if failed_first:  # the logs the first pass could not read: exit 2 once the rest is written
         loaded = replace(loaded, failed=[*failed_first, *loaded.failed])
     runs = loaded.runs  # headers: metadata, no rows
@@ -124,15 +125,17 @@ def cmd_fit(args: argparse.Namespace) -> int:
         if len(groups) > 1:
             raise ConfigError(f"--effects fits one device: these runs hold {len(groups)} "
                               f"({', '.join(repr(g) for g in groups)}); fit each apart")
-        return _fit_effects(args, est, feats, names, next(iter(gates.values()))) \
-            or loaded.exit_status
+        device = next(iter(groups))
+        return _fit_effects(args, ests.get(device, est), feats, names, gates[device],
+                            record=_estimator_record(chosen, device)) or loaded.exit_status
     instances = _instances(runs)
     ids = {device: _identity.recorded([r for r in runs
                                        if r.metadata.get("device_id", "") == device])
            for device in groups}
-    written = [_fit_device(args, est, group, device, paths[device], gates[device],
-                           several=len(groups) > 1, instance=instances.get(device),
-                           ids=ids[device])
+    written = [_fit_device(args, ests.get(device, est), group, device, paths[device],
+                           gates[device], several=len(groups) > 1,
+                           instance=instances.get(device), ids=ids[device],
+                           record=_estimator_record(chosen, device))
                for device, group in groups.items()]
     if args.json:
         conv.emit_json({"rest": {"mode": args.rest, "runs": [r.to_dict() for r in reports]},
@@ -147,15 +150,26 @@ _SINGLE_KEYS = ("calibration", "model", "method", "coefficients_physical", "per_
 """With one device, ``--json`` also has its calibration's keys at the top level."""
 
 
-def _chosen_estimator(readouts: Sequence[RunReadout], *, quiet: bool) -> ChosenEstimator:
-    """The estimator from the readouts (none of the estimator options given), said on
-    stderr unless ``-q``."""
+def _chosen_estimators(runs: Sequence[Run], readouts: Sequence[RunReadout], *,
+                       quiet: bool) -> dict[str, ChosenEstimator]:
+    """Per device of ``runs`` (their ``device_id``, "" when absent), the estimator from
+    the readouts of its own runs (none of the estimator options given): each device's
+    calibration is what ``fit --device ID`` writes for it. Said on stderr unless ``-q``."""
     from gyrotherm.analysis._readout_estimator import estimator_of
 
-    chosen = estimator_of(readouts)
+    devices = list(dict.fromkeys(str(r.metadata.get(_fitrest.DEVICE_KEY, "") or "")
+                                 for r in runs))
+    chosen = {d: estimator_of([r for r in readouts if r.device == d]) for d in devices}
     if not quiet:
-        print(f"note: {chosen.describe()}", file=sys.stderr)
+        for d, c in chosen.items():
+            print(f"note: {f'device {d}: ' if len(chosen) > 1 else ''}{c.describe()}",
+                  file=sys.stderr)
     return chosen
+
+
+def _estimator_record(chosen: dict[str, ChosenEstimator], device: str) -> dict[str, Any] | None:
+    """The provenance of ``device``'s estimator choice (None: an option gave it)."""
+    return chosen[device].to_dict() if device in chosen else None
 
 
 def _method(args: argparse.Namespace, feats: Sequence[RunFeatures]) -> Method:
@@ -172,10 +186,9 @@ def _method(args: argparse.Namespace, feats: Sequence[RunFeatures]) -> Method:
     return cast(Method, method)
 
 
-def _with_estimator_record(cal: Calibration, args: argparse.Namespace) -> Calibration:
-    """``cal`` with the provenance's ``estimator_chosen`` (how the readout chose it),
-    or ``estimator_options`` (given on the command line)."""
-    record = getattr(args, "estimator_record", None)
+def _with_estimator_record(cal: Calibration, record: dict[str, Any] | None) -> Calibration:
+    """``cal`` with the provenance's ``estimator_chosen`` (``record``: how the readout
+    chose it), or ``estimator_options`` (None: given on the command line)."""
     key = "estimator_chosen" if record is not None else "estimator_options"
     return replace(cal, provenance={**cal.provenance, key: record or "given"})
 
@@ -194,7 +207,8 @@ def _instances(runs: list[Run]) -> dict[str, int]:
 def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunFeatures],
                 device: str, out: Path, gates: list[Gate], *, several: bool,
                 instance: int | None = None,
-                ids: dict[str, str] | None = None) -> dict[str, Any]:
+                ids: dict[str, str] | None = None,
+                record: dict[str, Any] | None = None) -> dict[str, Any]:
     """Fit, print (unless ``--json``) and save the calibration of one device, and its
     report; what was written. ``instance`` (the log's number for the IMU) is recorded in
     the provenance, where ``export`` takes its slot from."""
@@ -210,7 +224,7 @@ def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunF
         cal = replace(cal, provenance={**cal.provenance, **ids})
     if recorded_options(args):
         cal = replace(cal, provenance={**cal.provenance, "input_options": recorded_options(args)})
-    cal = _fitgates.record(_with_estimator_record(cal, args), gates)
+    cal = _fitgates.record(_with_estimator_record(cal, record), gates)
     scaling = default_scaling(feats)
     per_run = fit_per_run(feats, args.model, estimator=est, scaling=scaling) if len(feats) > 1 \
         else []
@@ -279,7 +293,8 @@ def _effect_names(args: argparse.Namespace) -> tuple[str, ...]:
 
 
 def _fit_effects(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunFeatures],
-                 names: tuple[str, ...], gates: list[Gate]) -> int:
+                 names: tuple[str, ...], gates: list[Gate], *,
+                 record: dict[str, Any] | None = None) -> int:
     """``fit --effects``: the paper model plus named effects on every axis, their
     nonlinear parameters searched per axis as the diagnosis does; a version-2 file."""
     from gyrotherm.analysis._to_calibration import fit_effects
@@ -287,7 +302,7 @@ def _fit_effects(args: argparse.Namespace, est: EstimatorConfig, feats: list[Run
 
     result = fit_effects(feats, {a: names for a in common_axes(feats)}, estimator=est,
                          provenance={"effects_requested": list(names)})
-    cal = _fitgates.record(_with_estimator_record(result.calibration, args), gates)
+    cal = _fitgates.record(_with_estimator_record(result.calibration, record), gates)
     for axis in cal.axes if not args.json else ():
         print(f"axis {axis}: paper+{'+'.join(names)}: leave-one-run-out RMS (1-s blocks) "
               f"{result.baseline_heldout_rms_dps[axis]:.5g} (paper) → "

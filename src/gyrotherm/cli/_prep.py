@@ -55,6 +55,10 @@ class Prep:
     """Rest detection with these thresholds (None: ``--rest all``, none)."""
     estimator: EstimatorConfig | None = None
     """Estimate T and ΔT with this estimator (None: not needed)."""
+    device_estimators: tuple[tuple[str, EstimatorConfig], ...] = ()
+    """(device id, estimator) pairs: a run of a device listed here is estimated with its
+    own (``fit`` choosing each device's estimator from its readout), the others with
+    ``estimator``."""
     keep_rows: bool = True
     """Return whole runs; False: headers only (``Run.slice(0, 0)``)."""
     readout: bool = False
@@ -112,7 +116,9 @@ def prepare_log(path: str, prep: Prep) -> LogResult:
         if prep.estimator is not None:
             from gyrotherm.compensation import features
 
-            feats = tuple(features(r, prep.estimator) if w else None
+            by_device = dict(prep.device_estimators)
+            feats = tuple(features(r, by_device.get(r.metadata.get("device_id", ""),
+                                                    prep.estimator)) if w else None
                           for r, w in zip(runs, wanted, strict=True))
         readouts: tuple[RunReadout | None, ...] = ()
         if prep.readout:
@@ -159,10 +165,12 @@ class Loaded:
 
 
 def prep_from_args(args: argparse.Namespace, *, estimator: EstimatorConfig | None = None,
-                   keep_rows: bool = True, readout: bool = False) -> Prep:
+                   keep_rows: bool = True, readout: bool = False,
+                   device_estimators: dict[str, EstimatorConfig] | None = None) -> Prep:
     rest = None if getattr(args, "rest", "all") == "all" or readout else rest_config(args)
     return Prep(spec=spec_from_args(args), devices=tuple(getattr(args, "device", None) or ()),
                 rest=rest, estimator=estimator, keep_rows=keep_rows, readout=readout,
+                device_estimators=tuple((device_estimators or {}).items()),
                 debug=bool(getattr(args, "debug", False)))
 
 
