@@ -114,3 +114,14 @@ def test_each_device_of_a_log_gets_its_own_readouts_estimator(files: list[str],
         assert both["provenance"]["estimator_chosen"]["runs"] == 2
         lsbs[dev] = both["estimator"]["quantisation_c"]
     assert lsbs == pytest.approx({"A": 0.125, "B": 0.5}, rel=1e-6)
+
+
+def test_a_damaged_logs_note_is_said_once_though_fit_reads_it_twice(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    data = (Path(__file__).parents[1] / "data" / "px4_two_gyros.ulg").read_bytes()
+    cut = tmp_path / "cut.ulg"
+    cut.write_bytes(data[:-7])  # a last message cut short
+    main(["-q", "fit", str(cut), "--out", str(tmp_path / "c.json"), "--rest", "all",
+          "--force", "--model", "t2"])  # too short to fit: the note is what is checked
+    err = capsys.readouterr().err
+    assert err.count("the log is cut short") == 1, err

@@ -97,14 +97,16 @@ def cmd_fit(args: argparse.Namespace) -> int:
     conv.check_json_target(args.json)
     logs, failed_first = list(args.runs), []
     chosen: dict[str, ChosenEstimator] = {}  # per device, when fit chooses
-    if estimator_is_auto(args):  # a first pass characterises the readouts
+    auto = estimator_is_auto(args)
+    if auto:  # a first pass characterises the readouts
         first = _prep.load(args, _prep.prep_from_args(args, keep_rows=False, readout=True))
         chosen = _chosen_estimators(first.runs, first.readouts, quiet=args.quiet)
         logs, failed_first = first.paths, first.failed
     ests = {device: c.estimator for device, c in chosen.items()}
     # read, rest detection and T/ΔT per log on the workers (--jobs, --dask-scheduler)
     loaded = _prep.load(args, _prep.prep_from_args(args, estimator=est, keep_rows=False,
-                                                   device_estimators=ests), logs)
+                                                   device_estimators=ests), logs,
+                        notes=not auto)  # the first pass said the logs' damage
     if failed_first:  # the logs the first pass could not read: exit 2 once the rest is written
         loaded = replace(loaded, failed=[*failed_first, *loaded.failed])
     runs = loaded.runs  # headers: metadata, no rows

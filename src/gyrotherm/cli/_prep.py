@@ -174,10 +174,12 @@ def prep_from_args(args: argparse.Namespace, *, estimator: EstimatorConfig | Non
                 debug=bool(getattr(args, "debug", False)))
 
 
-def load(args: argparse.Namespace, prep: Prep, paths: Sequence[str] | None = None) -> Loaded:
+def load(args: argparse.Namespace, prep: Prep, paths: Sequence[str] | None = None, *,
+         notes: bool = True) -> Loaded:
     """Every log of ``paths`` (default ``args.runs``) prepared as ``prep`` says on the
-    workers of the options; failures, damage notes and (unless ``-q``) progress and
-    the workers' peak memory on stderr."""
+    workers of the options; failures, damage notes (``notes``: False on a second pass
+    over logs whose notes the first said) and (unless ``-q``) progress and the workers'
+    peak memory on stderr."""
     paths = [str(p) for p in (args.runs if paths is None else paths)]
     quiet = bool(getattr(args, "quiet", False))
     workers = _pool.workers_from_args(args)
@@ -191,7 +193,7 @@ def load(args: argparse.Namespace, prep: Prep, paths: Sequence[str] | None = Non
             print(f"gyrotherm: error: {line}", file=sys.stderr)
         raise RunFileError(failed[-1])
     for r in results:
-        for note in r.notes:
+        for note in r.notes if notes else ():
             print(f"note: {note}", file=sys.stderr)
         if r.error:
             print(f"gyrotherm: error: {r.error}", file=sys.stderr)
