@@ -84,11 +84,10 @@ def test_the_choice_is_said(files: list[str], tmp_path: Path,
     assert "regressed on the chamber temperature" in err
 
 
-def test_each_device_of_a_log_gets_its_own_readouts_estimator(files: list[str],
-                                                              tmp_path: Path) -> None:
-    # one CSV, two IMUs: A the generator's readout (0.125 °C), B the same runs read at
-    # 0.5 °C. Each calibration of 'fit --out DIR' must be the one 'fit --device ID' writes
-    # (the estimator once came from the median over both devices' runs: LSB of neither)
+@pytest.fixture(scope="module")
+def two_imus(files: list[str], tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One CSV, two IMUs: A the generator's readout (0.125 °C), B the same runs read at
+    0.5 °C."""
     from gyrotherm.codecs import read_run
 
     lines = ["t,temp,gx,dev,seg"]
@@ -98,10 +97,20 @@ def test_each_device_of_a_log_gets_its_own_readouts_estimator(files: list[str],
             temp = run.temperature_c if lsb is None else np.round(run.temperature_c / lsb) * lsb
             lines += [f"{t:.17g},{c:.17g},{g:.17g},{dev},{run.name}"
                       for t, c, g in zip(run.time_s, temp, run.rates_dps["x"], strict=True)]
-    log = tmp_path / "two_imus.csv"
+    log = tmp_path_factory.mktemp("two_imus") / "two_imus.csv"
     log.write_text("\n".join(lines) + "\n")
-    cols = ["--columns", "time=t:s", "temperature=temp:degC", "x=gx:dps", "device=dev",
-            "run=seg", "--no-validation"]
+    return log
+
+
+TWO_IMU_COLUMNS = ["--columns", "time=t:s", "temperature=temp:degC", "x=gx:dps",
+                   "device=dev", "run=seg", "--no-validation"]
+
+
+def test_each_device_of_a_log_gets_its_own_readouts_estimator(two_imus: Path,
+                                                              tmp_path: Path) -> None:
+    # each calibration of 'fit --out DIR' must be the one 'fit --device ID' writes (the
+    # estimator once came from the median over both devices' runs: LSB of neither)
+    log, cols = two_imus, TWO_IMU_COLUMNS
     assert main(["-q", "fit", str(log), "--out", str(tmp_path / "all") + "/", *cols]) == 0
     lsbs = {}
     for dev in ("A", "B"):
@@ -125,3 +134,12 @@ def test_a_damaged_logs_note_is_said_once_though_fit_reads_it_twice(
           "--force", "--model", "t2"])  # too short to fit: the note is what is checked
     err = capsys.readouterr().err
     assert err.count("the log is cut short") == 1, err
+
+
+def test_with_several_devices_each_choice_names_its_device(
+        two_imus: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["fit", str(two_imus), "--out", f"{tmp_path}/", *TWO_IMU_COLUMNS]) == 0
+    err = capsys.readouterr().err
+    for dev in ("A", "B"):
+        assert f"note: device {dev}: estimator from the temperature readout of 2 run(s)" in err
+        assert f"note: device {dev}: method offsets:" in err

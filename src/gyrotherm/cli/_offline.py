@@ -174,16 +174,18 @@ def _estimator_record(chosen: dict[str, ChosenEstimator], device: str) -> dict[s
     return chosen[device].to_dict() if device in chosen else None
 
 
-def _method(args: argparse.Namespace, feats: Sequence[RunFeatures]) -> Method:
+def _method(args: argparse.Namespace, feats: Sequence[RunFeatures], *,
+            device: str = "") -> Method:
     """``--method``, with ``auto`` resolved on the runs (:func:`choose_method`), said on
-    stderr unless ``-q``."""
+    stderr unless ``-q`` (naming ``device`` when there are several)."""
     if args.method != "auto":
         return cast(Method, args.method)
     method, share = choose_method(feats)
     why = ("each run spans temperature: one offset per run" if method == "offsets" else
            "isothermal runs: the T terms come from the levels between runs, one intercept")
     if not args.quiet:
-        print(f"note: method {method}: {share:.0%} of the temperature variance is within "
+        print(f"note: {f'device {device}: ' if device else ''}method {method}: "
+              f"{share:.0%} of the temperature variance is within "
               f"runs ({why})", file=sys.stderr)
     return cast(Method, method)
 
@@ -216,7 +218,7 @@ def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunF
     the provenance, where ``export`` takes its slot from."""
     if device and not args.json:
         print(f"device {device}: {len(feats)} runs")
-    method = _method(args, feats)
+    method = _method(args, feats, device=device if several else "")
     cal = fit(feats, args.model, estimator=est, method=method)
     if device:
         cal = replace(cal, provenance={**cal.provenance, "device_id": device})
