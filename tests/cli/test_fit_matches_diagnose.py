@@ -143,3 +143,16 @@ def test_with_several_devices_each_choice_names_its_device(
     for dev in ("A", "B"):
         assert f"note: device {dev}: estimator from the temperature readout of 2 run(s)" in err
         assert f"note: device {dev}: method offsets:" in err
+
+
+def test_the_method_auto_resolved_is_in_the_provenance(both: tuple[dict, dict], files: list[str],
+                                                       tmp_path: Path) -> None:
+    fit, _ = both
+    chosen = fit["provenance"]["method_chosen"]
+    assert chosen["rule"] == "--method auto" and chosen["offsets_from_share"] == 0.5
+    assert 0.5 <= chosen["within_run_share"] <= 1.0  # warm-ups: offsets, as recorded
+    out = tmp_path / "given.json"
+    assert main(["-q", "fit", *files[:2], "--out", str(out), "--no-validation",
+                 "--method", "offsets"]) == 0
+    given = json.loads(out.read_text())["provenance"]
+    assert given["method"] == "offsets" and "method_chosen" not in given

@@ -39,7 +39,7 @@ from gyrotherm.compensation import (
     score,
 )
 from gyrotherm.compensation._fit import Method
-from gyrotherm.compensation._fit_offsets import choose_method
+from gyrotherm.compensation._fit_offsets import WITHIN_SHARE_MIN, choose_method
 from gyrotherm.compensation._quality import Gate
 from gyrotherm.estimators import EstimatorConfig
 
@@ -175,11 +175,12 @@ def _estimator_record(chosen: dict[str, ChosenEstimator], device: str) -> dict[s
 
 
 def _method(args: argparse.Namespace, feats: Sequence[RunFeatures], *,
-            device: str = "") -> Method:
+            device: str = "") -> tuple[Method, dict[str, Any] | None]:
     """``--method``, with ``auto`` resolved on the runs (:func:`choose_method`), said on
-    stderr unless ``-q`` (naming ``device`` when there are several)."""
+    stderr unless ``-q`` (naming ``device`` when there are several); and, for ``auto``,
+    how it was resolved (the provenance's ``method_chosen``)."""
     if args.method != "auto":
-        return cast(Method, args.method)
+        return cast(Method, args.method), None
     method, share = choose_method(feats)
     why = ("each run spans temperature: one offset per run" if method == "offsets" else
            "isothermal runs: the T terms come from the levels between runs, one intercept")
@@ -187,7 +188,8 @@ def _method(args: argparse.Namespace, feats: Sequence[RunFeatures], *,
         print(f"note: {f'device {device}: ' if device else ''}method {method}: "
               f"{share:.0%} of the temperature variance is within "
               f"runs ({why})", file=sys.stderr)
-    return cast(Method, method)
+    return cast(Method, method), {"rule": "--method auto", "within_run_share": share,
+                                  "offsets_from_share": WITHIN_SHARE_MIN}
 
 
 def _with_estimator_record(cal: Calibration, record: dict[str, Any] | None) -> Calibration:
@@ -218,8 +220,10 @@ def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunF
     the provenance, where ``export`` takes its slot from."""
     if device and not args.json:
         print(f"device {device}: {len(feats)} runs")
-    method = _method(args, feats, device=device if several else "")
+    method, method_chosen = _method(args, feats, device=device if several else "")
     cal = fit(feats, args.model, estimator=est, method=method)
+    if method_chosen:
+        cal = replace(cal, provenance={**cal.provenance, "method_chosen": method_chosen})
     if device:
         cal = replace(cal, provenance={**cal.provenance, "device_id": device})
     if device and instance is not None:
