@@ -156,3 +156,16 @@ def test_the_method_auto_resolved_is_in_the_provenance(both: tuple[dict, dict], 
                  "--method", "offsets"]) == 0
     given = json.loads(out.read_text())["provenance"]
     assert given["method"] == "offsets" and "method_chosen" not in given
+
+
+def test_runs_without_a_device_id_beside_devices_are_named_so(
+        two_imus: Path, files: list[str], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    # a run file without a device column beside a two-IMU log: three calibrations; the
+    # notes once said 'device : ...' for it
+    assert main(["fit", str(two_imus), files[2], "--out", f"{tmp_path}/",
+                 *TWO_IMU_COLUMNS]) == 0
+    err = capsys.readouterr().err
+    assert "note: device : " not in err
+    assert "note: the runs without a device id: estimator from the temperature readout" in err
+    assert "note: the runs without a device id: method offsets" in err

@@ -164,9 +164,14 @@ def _chosen_estimators(runs: Sequence[Run], readouts: Sequence[RunReadout], *,
     chosen = {d: estimator_of([r for r in readouts if r.device == d]) for d in devices}
     if not quiet:
         for d, c in chosen.items():
-            print(f"note: {f'device {d}: ' if len(chosen) > 1 else ''}{c.describe()}",
+            print(f"note: {_device_label(d) if len(chosen) > 1 else ''}{c.describe()}",
                   file=sys.stderr)
     return chosen
+
+
+def _device_label(device: str) -> str:
+    """How a note names the device it is about, when there are several."""
+    return f"device {device}: " if device else "the runs without a device id: "
 
 
 def _estimator_record(chosen: dict[str, ChosenEstimator], device: str) -> dict[str, Any] | None:
@@ -175,9 +180,9 @@ def _estimator_record(chosen: dict[str, ChosenEstimator], device: str) -> dict[s
 
 
 def _method(args: argparse.Namespace, feats: Sequence[RunFeatures], *,
-            device: str = "") -> tuple[Method, dict[str, Any] | None]:
+            label: str = "") -> tuple[Method, dict[str, Any] | None]:
     """``--method``, with ``auto`` resolved on the runs (:func:`choose_method`), said on
-    stderr unless ``-q`` (naming ``device`` when there are several); and, for ``auto``,
+    stderr unless ``-q`` (after ``label``, the device when there are several); and, for ``auto``,
     how it was resolved (the provenance's ``method_chosen``)."""
     if args.method != "auto":
         return cast(Method, args.method), None
@@ -185,7 +190,7 @@ def _method(args: argparse.Namespace, feats: Sequence[RunFeatures], *,
     why = ("each run spans temperature: one offset per run" if method == "offsets" else
            "isothermal runs: the T terms come from the levels between runs, one intercept")
     if not args.quiet:
-        print(f"note: {f'device {device}: ' if device else ''}method {method}: "
+        print(f"note: {label}method {method}: "
               f"{share:.0%} of the temperature variance is within "
               f"runs ({why})", file=sys.stderr)
     return cast(Method, method), {"rule": "--method auto", "within_run_share": share,
@@ -220,7 +225,8 @@ def _fit_device(args: argparse.Namespace, est: EstimatorConfig, feats: list[RunF
     the provenance, where ``export`` takes its slot from."""
     if device and not args.json:
         print(f"device {device}: {len(feats)} runs")
-    method, method_chosen = _method(args, feats, device=device if several else "")
+    method, method_chosen = _method(args, feats,
+                                    label=_device_label(device) if several else "")
     cal = fit(feats, args.model, estimator=est, method=method)
     if method_chosen:
         cal = replace(cal, provenance={**cal.provenance, "method_chosen": method_chosen})
