@@ -77,9 +77,21 @@ class Gate:
         return asdict(self)
 
 
-def _rest_values(runs: Sequence[RunFeatures], attr: str) -> np.ndarray:
-    parts = [r.rows(getattr(r, attr)) for r in runs]
-    return np.concatenate(parts) if parts else np.zeros(0)
+_BLOCK_ROWS = 1 << 16
+"""Rows of the design formed at a time (:func:`design_condition`)."""
+
+
+def _rest_temperatures(runs: Sequence[RunFeatures]) -> tuple[int, int, float]:
+    """Rest rows, distinct temperature readings and their span (°C) over the runs,
+    run by run (no copy of every run's rows at once)."""
+    n, distinct, lo, hi = 0, np.zeros(0), np.inf, -np.inf
+    for r in runs:
+        t = r.rows(r.temperature_c)
+        if len(t):
+            n += len(t)
+            distinct = np.union1d(distinct, np.unique(t))
+            lo, hi = min(lo, float(t.min())), max(hi, float(t.max()))
+    return n, len(distinct), (hi - lo) if n else 0.0
 
 
 def _sample_rate_hz(runs: Sequence[RunFeatures]) -> float | None:
@@ -96,8 +108,9 @@ def design_condition(runs: Sequence[RunFeatures], spec: ModelSpec) -> float:
     scaling = default_scaling(runs)
     for r in runs:
         t, d = r.rows(r.temperature_c), r.rows(r.delta_t_c)
-        if len(t):
-            a = spec.design(*scaling.centre(t, d))
+        for start in range(0, len(t), _BLOCK_ROWS):  # bounded memory on long logs
+            a = spec.design(*scaling.centre(t[start:start + _BLOCK_ROWS],
+                                            d[start:start + _BLOCK_ROWS]))
             gram += a.T @ a
     norms = np.sqrt(np.diag(gram))
     if not np.all(norms > 0):
@@ -111,8 +124,7 @@ def design_condition(runs: Sequence[RunFeatures], spec: ModelSpec) -> float:
 def check(runs: Sequence[RunFeatures], spec: ModelSpec, *, validation: bool) -> list[Gate]:
     """Every gate of the module docstring on one device's runs, in the table's order
     (the later ones are skipped when there are no rest rows to measure)."""
-    temps = _rest_values(runs, "temperature_c")
-    n = len(temps)
+    n, distinct, span = _rest_temperatures(runs)
     gates = [Gate("rows", n, MIN_REST_ROWS, "rows", n >= MIN_REST_ROWS, True,
                   "rows at rest over all runs of the device; log longer, or still, "
                   "or check rest detection (--rest)")]
@@ -128,12 +140,10 @@ def check(runs: Sequence[RunFeatures], spec: ModelSpec, *, validation: bool) -> 
                           "logs sensor_gyro at 1 Hz: set SDLOG_PROFILE 'thermal "
                           "calibration' (or 'sensor comparison') and log again"))
     if n:
-        distinct = len(np.unique(temps))
         gates.append(Gate("temperature-stuck", distinct, MIN_DISTINCT_TEMPERATURES,
                           "distinct readings", distinct >= MIN_DISTINCT_TEMPERATURES, True,
                           "the temperature never changes: the sensor is stuck or not "
                           "logged (e.g. ArduPilot Temp = 0, PX4 SITL 0 °C)"))
-        span = float(temps.max() - temps.min())
         gates.append(Gate("temperature-span", span, MIN_TEMPERATURE_SPAN_C, "°C",
                           span >= MIN_TEMPERATURE_SPAN_C, True,
                           "temperature range at rest; record a warm-up from cold "
