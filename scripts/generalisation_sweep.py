@@ -1,7 +1,8 @@
 """Does the diagnosis generalise beyond the catalogue's exact forms? A seeded sweep.
 
     .venv/bin/python scripts/generalisation_sweep.py
-        [--seeds dev|eval|eval1|shapes-dev|shapes-eval|shapes-eval2|null-eval|null-confirm]
+        [--seeds dev|eval|eval1|shapes-dev|shapes-eval|shapes-eval2|shapes-eval3|
+                 null-eval|null-confirm]
         [--quick] [--conditions I ...] [--cases NAME ...] [--json OUT]
 
 Per case (what is injected) × condition (sample rate, temperature readout, number
@@ -89,6 +90,10 @@ SHAPE_EVAL2_SEEDS = (321, 322, 323, 324, 325)
 (the commit adding this line) before the changes it will score and before any result on it
 was seen: the first set (301–305) has been read, so what is changed after it is scored here,
 once."""
+SHAPE_EVAL3_SEEDS = (341, 342, 343, 344, 345)
+"""Third evaluation set for the shapes, fixed (the commit adding this line) before the
+hysteresis-or-gradient verdict it will score and before any result on it; run once, the
+shape cases and the generator's own hysteresis, wide hysteresis and thermal lag."""
 NULL_EVAL_SEEDS = tuple(range(5001, 5801))
 """Null-only evaluation (issue 19 item 1, "nulls at scale"): 800 seeds, fixed (the commit
 adding this line) before any result on them was seen; never used while developing; run
@@ -106,7 +111,7 @@ NULL_SETS = (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS)
 """Null-only sets: one device per diagnosis, conditions in turn."""
 SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "shapes-dev": SHAPE_DEV_SEEDS, "shapes-eval": SHAPE_EVAL_SEEDS,
-             "shapes-eval2": SHAPE_EVAL2_SEEDS,
+             "shapes-eval2": SHAPE_EVAL2_SEEDS, "shapes-eval3": SHAPE_EVAL3_SEEDS,
              "null-eval": NULL_EVAL_SEEDS, "null-confirm": NULL_CONFIRM_SEEDS}
 DURATION_S = 6000.0
 STEP_AT_C = 30.0
@@ -392,7 +397,8 @@ def commit() -> str:
 def sweep(seeds: Sequence[int], *, quick: bool = False, conditions: Sequence[int] | None = None,
           only: Sequence[str] | None = None) -> list[dict[str, Any]]:
     cases = [c for c in CASES if c.name in QUICK_CASES] if quick else list(CASES)
-    if set(seeds) & {*SHAPE_DEV_SEEDS, *SHAPE_EVAL_SEEDS, *SHAPE_EVAL2_SEEDS}:
+    if set(seeds) & {*SHAPE_DEV_SEEDS, *SHAPE_EVAL_SEEDS, *SHAPE_EVAL2_SEEDS,
+                     *SHAPE_EVAL3_SEEDS}:
         cases = list(SHAPE_CASES)
     if only:
         by_name = {c.name: c for c in (*CASES, *SHAPE_CASES)}  # two_exp_warmup in both
