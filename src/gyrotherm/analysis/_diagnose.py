@@ -68,7 +68,10 @@ from gyrotherm.analysis._resolve import (
 )
 from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._select import Selection, prune, select
-from gyrotherm.analysis._separable import drop_inseparable_drift
+from gyrotherm.analysis._separable import (
+    drop_hysteresis_like_gradient,
+    drop_inseparable_drift,
+)
 from gyrotherm.analysis._shape_check import shape_notes
 from gyrotherm.analysis._to_calibration import EffectsFit, fit_effects
 from gyrotherm.analysis._unexplained import VARIABLES, Unexplained, search_unexplained
@@ -235,6 +238,9 @@ def diagnose(
     final_ev, hyst_verdict = drop_readout_hysteresis(
         selector, final_ev, limit, readouts, margin=margin, seed=seed)
     final_ev, drift_verdict = drop_inseparable_drift(selector, final_ev)
+    if hyst_verdict is None:
+        final_ev, hyst_verdict = drop_hysteresis_like_gradient(selector, final_ev,
+                                                               margin=margin)
     verdicts = tuple(v for v in (lag_verdict, hyst_verdict, drift_verdict) if v)
     for v in verdicts:
         notes.append(f"{v.effect} not reported as a physical finding ({v.verdict}): {v.reason}")
