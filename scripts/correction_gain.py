@@ -51,7 +51,6 @@ and the offline scores 13–21 s. The commit in the header is HEAD when the run 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from collections.abc import Mapping, Sequence
@@ -278,9 +277,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="print the tables of earlier --json outputs (merged) instead of running")
     args = p.parse_args(argv)
     if args.tables_from:
-        docs = [json.loads(Path(f).read_text(encoding="utf-8")) for f in args.tables_from]
-        rows = [r for d in docs for r in d["rows"]]
-        heads = [d["header"] for d in docs]
+        rows, heads = dg.read_records(args.tables_from)
     else:
         at_commit = dg.commit()
         start = time.perf_counter()
@@ -291,21 +288,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             cmd += " --seeds " + " ".join(map(str, args.seeds))
         if list(args.shapes) != list(SHAPES):
             cmd += " --shapes " + " ".join(args.shapes)
-        s = dg.FULL
-        heads = [f"`.venv/bin/python {cmd}` at commit {at_commit}, seeds "
-                 f"{', '.join(map(str, args.seeds))}, {s.n_train} training runs + 1 held-out, "
-                 f"{s.duration_s:g} s at {s.rate_hz:g} Hz, {elapsed:.0f} s"]
+        heads = [dg.run_header(cmd, at_commit, args.seeds, dg.FULL, elapsed)]
         if args.json:
-            out = Path(args.json)
-            out.parent.mkdir(parents=True, exist_ok=True)
-            out.write_text(json.dumps({"header": heads[0], "seeds": list(args.seeds),
-                                       "commit": at_commit, "elapsed_s": elapsed,
-                                       "rows": rows}, indent=2) + "\n", encoding="utf-8")
-    print("\n".join(heads))
-    print()
-    print("\n".join(cell_table(rows)))
-    print()
-    print("\n".join(summary_table(rows)))
+            dg.write_record(args.json, {"header": heads[0], "seeds": list(args.seeds),
+                                        "commit": at_commit, "elapsed_s": elapsed,
+                                        "rows": rows})
+    dg.print_report(heads, cell_table(rows), summary_table(rows))
     return 0
 
 

@@ -511,6 +511,36 @@ def criterion_table(rows: Sequence[Mapping[str, Any]]) -> list[str]:
     return out
 
 
+def run_header(cmd: str, at_commit: str, seeds: Sequence[int], s: Settings,
+               elapsed_s: float) -> str:
+    """The line a study's tables are printed under: the command, the commit, the seeds,
+    the run design and the run time."""
+    return (f"`.venv/bin/python {cmd}` at commit {at_commit}, seeds "
+            f"{', '.join(map(str, seeds))}, {s.n_train} training runs + 1 held-out, "
+            f"{s.duration_s:g} s at {s.rate_hz:g} Hz, {elapsed_s:.0f} s")
+
+
+def write_record(path: str, record: Mapping[str, Any]) -> None:
+    """A study's ``--json`` output (parent directories created)."""
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(dict(record), indent=2) + "\n", encoding="utf-8")
+
+
+def read_records(paths: Sequence[str]) -> tuple[list[dict[str, Any]], list[str]]:
+    """``--tables-from``: the rows and headers of earlier ``--json`` outputs, merged."""
+    docs = [json.loads(Path(f).read_text(encoding="utf-8")) for f in paths]
+    return [r for d in docs for r in d["rows"]], [d["header"] for d in docs]
+
+
+def print_report(heads: Sequence[str], *tables: Sequence[str]) -> None:
+    """The headers, then each table, a blank line between."""
+    print("\n".join(heads))
+    for table in tables:
+        print()
+        print("\n".join(table))
+
+
 def commit() -> str:
     try:
         out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, check=True,
@@ -551,9 +581,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="print the tables of earlier --json outputs (merged) instead of running")
     args = p.parse_args(argv)
     if args.tables_from:
-        docs = [json.loads(Path(f).read_text(encoding="utf-8")) for f in args.tables_from]
-        rows = [r for d in docs for r in d["rows"]]
-        heads = [d["header"] for d in docs]
+        rows, heads = read_records(args.tables_from)
     else:
         s = QUICK if args.quick else FULL
         start = time.perf_counter()
@@ -562,23 +590,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         cmd = "scripts/deployed_gain.py" + (" --quick" if args.quick else "")
         if list(args.seeds) != list(SEEDS):
             cmd += " --seeds " + " ".join(map(str, args.seeds))
-        heads = [f"`.venv/bin/python {cmd}` at commit {commit()}, seeds "
-                 f"{', '.join(map(str, args.seeds))}, {s.n_train} training runs + 1 held-out, "
-                 f"{s.duration_s:g} s at {s.rate_hz:g} Hz, {elapsed:.0f} s"]
+        at_commit = commit()
+        heads = [run_header(cmd, at_commit, args.seeds, s, elapsed)]
         if args.json:
-            out = Path(args.json)
-            out.parent.mkdir(parents=True, exist_ok=True)
-            out.write_text(json.dumps({"header": heads[0], "settings": s.__dict__,
-                                       "seeds": list(args.seeds), "commit": commit(),
-                                       "elapsed_s": elapsed, "rows": rows}, indent=2) + "\n",
-                           encoding="utf-8")
-    print("\n".join(heads))
-    print()
-    print("\n".join(no_zero_table(rows)))
-    print()
-    print("\n".join(zero_table(rows)))
-    print()
-    print("\n".join(criterion_table(rows)))
+            write_record(args.json, {"header": heads[0], "settings": s.__dict__,
+                                     "seeds": list(args.seeds), "commit": at_commit,
+                                     "elapsed_s": elapsed, "rows": rows})
+    print_report(heads, no_zero_table(rows), zero_table(rows), criterion_table(rows))
     return 0
 
 

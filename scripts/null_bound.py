@@ -57,7 +57,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
-import json
 import statistics
 import sys
 import tempfile
@@ -281,16 +280,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     cmd = "scripts/null_bound.py"
     if list(a.seeds) != list(SEEDS):
         cmd += " --seeds " + " ".join(map(str, a.seeds))
-    header = (f"`.venv/bin/python {cmd}` at commit {head}, seeds "
-              f"{', '.join(map(str, a.seeds))}, {dg.FULL.n_train} training runs + 1 held-out, "
-              f"{dg.FULL.duration_s:g} s at {dg.FULL.rate_hz:g} Hz, {elapsed:.0f} s")
+    header = dg.run_header(cmd, head, a.seeds, dg.FULL, elapsed)
     print(header + "\n")
     print("\n".join(cell_table(rows)))
     print("\n" + overall(rows))
     if a.json:
-        Path(a.json).write_text(json.dumps({"header": header, "commit": head,
-                                            "elapsed_s": elapsed, "rows": rows}, indent=1)
-                                + "\n", encoding="utf-8")
+        dg.write_record(a.json, {"header": header, "commit": head, "elapsed_s": elapsed,
+                                 "rows": rows})
     return 0
 
 
