@@ -38,10 +38,10 @@ from scipy.signal import savgol_coeffs, savgol_filter
 from gyrotherm._errors import CalibrationError
 from gyrotherm.analysis._effects import DIRECTION_WIDTH_C, direction_state
 from gyrotherm.codecs import Run
+from gyrotherm.compensation._fit_offsets import BLOCK_S, block_mean, blocks
 from gyrotherm.estimators import EstimatorConfig, estimate_series
 
 FloatArray = NDArray[np.float64]
-BLOCK_S = 1.0
 DEFAULT_TAU_S = 120.0
 
 
@@ -355,16 +355,6 @@ def estimator_for(readouts: Sequence[Readout], tau_s: float = DEFAULT_TAU_S) -> 
                            update_period_s=period)
 
 
-def _blocks(time_s: FloatArray) -> tuple[NDArray[np.int64], FloatArray]:
-    idx = np.floor((time_s - time_s[0]) / BLOCK_S).astype(np.int64)
-    _, inverse, counts = np.unique(idx, return_inverse=True, return_counts=True)
-    return inverse, counts.astype(np.float64)
-
-
-def _mean(values: FloatArray, inverse: NDArray[np.int64], counts: FloatArray) -> FloatArray:
-    return np.bincount(inverse, weights=values, minlength=len(counts)) / counts
-
-
 def prepare(
     run: Run,
     axis: str,
@@ -384,25 +374,25 @@ def prepare(
         raise CalibrationError(
             f"{run.source}: run {run.name!r} has no rate axis {axis!r} (has {list(run.axes)})"
         )
-    inverse, counts = _blocks(run.time_s)
+    inverse, counts = blocks(run.time_s)
     if features == "kalman":
         est = estimate_series(run.time_s, run.temperature_c, estimator)
-        temp = _mean(est.temperature_c, inverse, counts)
-        rate_c = _mean(est.rate_c_per_s, inverse, counts)
+        temp = block_mean(est.temperature_c, inverse, counts)
+        rate_c = block_mean(est.rate_c_per_s, inverse, counts)
     elif features == "smooth":
-        raw = _mean(run.temperature_c, inverse, counts)
+        raw = block_mean(run.temperature_c, inverse, counts)
         temp, rate_c = _smooth(raw)
     else:
         raise CalibrationError(f"features = {features!r}: expected 'smooth' or 'kalman'")
-    chamber = None if run.chamber_c is None else _mean(run.chamber_c, inverse, counts)
+    chamber = None if run.chamber_c is None else block_mean(run.chamber_c, inverse, counts)
     return Prepared(
         name=run.name,
-        time_s=_mean(run.time_s, inverse, counts),
+        time_s=block_mean(run.time_s, inverse, counts),
         temperature_c=temp,
         rate_c_per_s=rate_c,
         delta_t_c=estimator.tau_s * rate_c,
         chamber_c=chamber,
-        rate_dps=_mean(run.rates_dps[axis], inverse, counts),
+        rate_dps=block_mean(run.rates_dps[axis], inverse, counts),
         counts=counts,
         direction=direction_state(temp, direction_width_c),
     )

@@ -58,9 +58,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from gyrotherm.analysis._null_replay import replay_lag, replay_spline
-from gyrotherm.analysis._prep import BLOCK_S, Prepared, Readout
+from gyrotherm.analysis._prep import Prepared, Readout
 from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._stats import RATE_THRESHOLD_C_PER_S
+from gyrotherm.compensation._fit_offsets import BLOCK_S
 
 if TYPE_CHECKING:
     from gyrotherm.analysis._unexplained import Unexplained

@@ -44,7 +44,7 @@ from gyrotherm.analysis._effects import (
     ExtendedModel,
     direction_state,
 )
-from gyrotherm.analysis._prep import Prepared, _blocks, _mean
+from gyrotherm.analysis._prep import Prepared
 from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._unexplained import evaluate_with, knots_for, two_stage
 from gyrotherm.compensation import (
@@ -56,6 +56,8 @@ from gyrotherm.compensation import (
     score,
 )
 from gyrotherm.compensation._correction import Correction
+from gyrotherm.compensation._fit_offsets import block_mean
+from gyrotherm.compensation._fit_offsets import blocks as second_blocks
 from gyrotherm.estimators import EstimatorConfig
 
 
@@ -88,12 +90,12 @@ def blocks(run: RunFeatures, axis: str, tau_s: float) -> Prepared:
     """Per-row estimator features of ``run`` averaged over 1-s blocks (one axis)."""
     if axis not in run.rates_dps:
         raise CalibrationError(f"{run.source}: run {run.name!r} has no rate axis {axis!r}")
-    inverse, counts = _blocks(run.time_s)
-    temp = _mean(run.temperature_c, inverse, counts)
-    dtemp = _mean(run.delta_t_c, inverse, counts)
-    return Prepared(name=run.name, time_s=_mean(run.time_s, inverse, counts),
+    inverse, counts = second_blocks(run.time_s)
+    temp = block_mean(run.temperature_c, inverse, counts)
+    dtemp = block_mean(run.delta_t_c, inverse, counts)
+    return Prepared(name=run.name, time_s=block_mean(run.time_s, inverse, counts),
                     temperature_c=temp, rate_c_per_s=dtemp / tau_s, delta_t_c=dtemp,
-                    chamber_c=None, rate_dps=_mean(run.rates_dps[axis], inverse, counts),
+                    chamber_c=None, rate_dps=block_mean(run.rates_dps[axis], inverse, counts),
                     counts=counts, direction=direction_state(temp, DIRECTION_WIDTH_C))
 
 

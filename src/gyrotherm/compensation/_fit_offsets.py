@@ -36,22 +36,33 @@ if TYPE_CHECKING:
 
 FloatArray = NDArray[np.float64]
 BLOCK_S = 1.0
-"""Block length, s (the diagnosis' :data:`gyrotherm.analysis._prep.BLOCK_S`)."""
+"""Block length, s (the diagnosis' 1-s blocks: :mod:`gyrotherm.analysis._prep` uses these)."""
+
+
+def blocks(time_s: FloatArray, keep: NDArray[np.bool_] | None = None
+           ) -> tuple[NDArray[np.int64], FloatArray]:
+    """Per row (of the rows ``keep`` selects), the index of its 1-s block of time since
+    the first row, and each block's row count (blocks without a row dropped)."""
+    idx = np.floor((time_s - time_s[0]) / BLOCK_S).astype(np.int64)
+    if keep is not None:
+        idx = idx[keep]
+    _, inverse, counts = np.unique(idx, return_inverse=True, return_counts=True)
+    return inverse, counts.astype(np.float64)
+
+
+def block_mean(values: FloatArray, inverse: NDArray[np.int64], counts: FloatArray
+               ) -> FloatArray:
+    """``values`` (one per row of :func:`blocks`) averaged per block."""
+    return np.bincount(inverse, weights=values, minlength=len(counts)) / counts
 
 
 def block_means(run: RunFeatures, axis: str) -> tuple[FloatArray, FloatArray, FloatArray]:
     """T, ΔT and the ``axis`` rate of ``run`` averaged over 1-s blocks of time since its
     first row (rest rows only, when it has a rest mask; blocks without one dropped)."""
-    idx = np.floor((run.time_s - run.time_s[0]) / BLOCK_S).astype(np.int64)
-    t, d, y = run.temperature_c, run.delta_t_c, run.rates_dps[axis]
-    if run.rest is not None:
-        idx, t, d, y = idx[run.rest], t[run.rest], d[run.rest], y[run.rest]
-    _, inverse, counts = np.unique(idx, return_inverse=True, return_counts=True)
-
-    def mean(v: FloatArray) -> FloatArray:
-        return np.bincount(inverse, weights=v, minlength=len(counts)) / counts
-
-    return mean(t), mean(d), mean(y)
+    inverse, counts = blocks(run.time_s, run.rest)
+    t, d, y = (run.rows(v) for v in (run.temperature_c, run.delta_t_c, run.rates_dps[axis]))
+    return (block_mean(t, inverse, counts), block_mean(d, inverse, counts),
+            block_mean(y, inverse, counts))
 
 
 def solve_triangular_checked(r: FloatArray, k: int, n: int,
