@@ -33,6 +33,9 @@ NULL_DEV_SEEDS = tuple(range(6001, 6101))
 NULL_CONFIRM_SEEDS = tuple(range(8001, 8601))
 """Fresh nulls for the change developed on NULL_DEV_SEEDS: fixed (the commit adding this
 line) before any result on them was seen."""
+NULL_CONFIRM2_SEEDS = tuple(range(10001, 10601))
+"""Fresh nulls for round 4 (a structure sharper than the readout can place, reported when
+it beats the readout replays): fixed (the commit adding this line) before any result."""
 CORNER = 3
 """Index of the 1 °C / 1.3 s / 3-run condition in the sweep's CONDITIONS."""
 
@@ -49,12 +52,13 @@ def test_null_eval_seeds_are_fresh_and_cover_every_condition_equally(sweep: Modu
     assert sweep.NULL_EVAL_SEEDS == NULL_EVAL_SEEDS
     assert sweep.NULL_DEV_SEEDS == NULL_DEV_SEEDS
     assert sweep.NULL_CONFIRM_SEEDS == NULL_CONFIRM_SEEDS
+    assert sweep.NULL_CONFIRM2_SEEDS == NULL_CONFIRM2_SEEDS
     sets = [set(DEV_SEEDS), set(EVAL_SEEDS), set(sweep.SHAPE_DEV_SEEDS),
             set(sweep.SHAPE_EVAL_SEEDS), set(NULL_EVAL_SEEDS), set(NULL_DEV_SEEDS),
-            set(NULL_CONFIRM_SEEDS)]
+            set(NULL_CONFIRM_SEEDS), set(NULL_CONFIRM2_SEEDS)]
     assert sum(map(len, sets)) == len(set().union(*sets))
     n = len(sweep.CONDITIONS)
-    for seeds in (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS):
+    for seeds in (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS, NULL_CONFIRM2_SEEDS):
         assert [len(seeds[i::n]) for i in range(n)] == [len(seeds) // n] * n
 
 

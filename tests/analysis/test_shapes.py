@@ -32,6 +32,8 @@ SHAPE_EVAL2_SEEDS = (321, 322, 323, 324, 325)
 """The second set, fixed (the commit adding this line) before the changes it scores."""
 SHAPE_EVAL3_SEEDS = (341, 342, 343, 344, 345)
 """The third set, fixed (the commit adding this line) before the change it scores."""
+SHAPE_EVAL4_SEEDS = (361, 362, 363, 364, 365)
+"""The fourth set, fixed (the commit adding this line) before the change it scores."""
 
 
 def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
@@ -46,6 +48,11 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
     assert not set(SHAPE_EVAL3_SEEDS) & {*used, *SHAPE_EVAL_SEEDS, *SHAPE_EVAL2_SEEDS,
                                           *sweep.NULL_EVAL_SEEDS, *sweep.NULL_DEV_SEEDS,
                                           *sweep.NULL_CONFIRM_SEEDS}
+    assert sweep.SHAPE_EVAL4_SEEDS == SHAPE_EVAL4_SEEDS
+    assert not set(SHAPE_EVAL4_SEEDS) & {*used, *SHAPE_EVAL_SEEDS, *SHAPE_EVAL2_SEEDS,
+                                          *SHAPE_EVAL3_SEEDS, *sweep.NULL_EVAL_SEEDS,
+                                          *sweep.NULL_DEV_SEEDS, *sweep.NULL_CONFIRM_SEEDS,
+                                          *sweep.NULL_CONFIRM2_SEEDS}
 
 
 def test_periodic_t_by_hand() -> None:

@@ -1,0 +1,75 @@
+"""scripts/readout_oracle.py: the held-out gain of an injected shape's true form on the
+readout's variables, against hand-built runs whose answer is known."""
+
+from __future__ import annotations
+
+from types import ModuleType
+
+import numpy as np
+import pytest
+
+from gyrotherm.analysis._effects import design
+from gyrotherm.analysis._prep import Prepared
+from gyrotherm.compensation import Scaling
+
+from .conftest import load_script
+
+SAT = {"saturating_dt": {"amplitude_dps": 0.05, "scale_c": 1.5}}
+
+
+@pytest.fixture(scope="module")
+def oracle() -> ModuleType:
+    return load_script("readout_oracle")
+
+
+def _runs(seed: int, shape_dps: float, noise_dps: float) -> list[Prepared]:
+    rng = np.random.default_rng(seed)
+    out = []
+    for r in range(3):
+        t = np.arange(3000.0)
+        temp = 25.0 + 10.0 * np.sin(2 * np.pi * t / (1500.0 + 200 * r))
+        dt = 120.0 * np.gradient(temp)
+        rate = (0.01 + 1e-4 * temp + shape_dps * np.tanh(dt / 1.5)
+                + noise_dps * rng.standard_normal(len(t)))
+        out.append(Prepared(name=f"r{r}", time_s=t, temperature_c=temp, rate_c_per_s=dt / 120,
+                            delta_t_c=dt, chamber_c=None, rate_dps=rate,
+                            counts=np.ones(len(t)), direction=np.zeros(len(t))))
+    return out
+
+
+def _scaling(runs: list[Prepared]) -> Scaling:
+    return Scaling.from_data(np.concatenate([p.temperature_c for p in runs]),
+                             np.concatenate([p.delta_t_c for p in runs]))
+
+
+def test_a_shape_that_is_there_buys_what_its_noise_allows(oracle: ModuleType) -> None:
+    # rate = linear in T + 0.05·tanh(ΔT/1.5) + white noise σ = 0.005: with the true column
+    # the held-out RMS is σ's; without it, √(r² + σ²), r the RMS of what the paper model
+    # (least squares, one offset per run) leaves of the noiseless tanh
+    sigma = 0.005
+    runs = _runs(1, 0.05, sigma)
+    scaling = _scaling(runs)
+    clean = _runs(1, 0.05, 0.0)
+    xs, ys = [], []
+    for p in clean:
+        _, x = design(p.time_s, p.temperature_c, p.delta_t_c, scaling, {})
+        xs.append(x - x.mean(axis=0))
+        ys.append(p.rate_dps - p.rate_dps.mean())
+    x, y = np.vstack(xs), np.concatenate(ys)
+    r = float(np.sqrt(np.mean((y - x @ np.linalg.lstsq(x, y, rcond=None)[0]) ** 2)))
+    expected = float(np.sqrt(r**2 + sigma**2) / sigma)
+    assert oracle.oracle_gain(SAT, runs, scaling) == pytest.approx(expected, rel=0.05)
+    assert expected > 2.0
+    zero = [np.zeros(len(p)) for p in runs]
+    assert oracle.heldout_gain(runs, scaling, zero) == pytest.approx(1.0, abs=1e-9)
+
+
+def test_a_shape_that_is_not_there_buys_nothing(oracle: ModuleType) -> None:
+    runs = _runs(2, 0.0, 0.005)
+    gain = oracle.oracle_gain(SAT, runs, _scaling(runs))
+    assert 0.97 < gain < 1.03
+
+
+def test_no_shape_no_oracle(oracle: ModuleType) -> None:
+    runs = _runs(3, 0.0, 0.005)
+    assert oracle.oracle_gain({}, runs, _scaling(runs)) is None
