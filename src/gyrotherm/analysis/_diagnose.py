@@ -18,8 +18,8 @@
    (:func:`~._select.prune`); test residual structure no catalogued effect
    explains (:mod:`._unexplained`: a spline in T, ΔT or time since power-on,
    reported as an ``unexplained`` finding, not part of the extended model; one
-   narrower than the readout can place is a verdict, :mod:`._resolution`, and so is
-   one no better than readout replays without it give, :mod:`._resolve`); refit the
+   no better than readout replays without it give is a verdict, :mod:`._resolve`, and
+   one sharper than the readout can place gets a note saying so, :mod:`._resolution`); refit the
    extended model, replay it through the extended simulator, and report
    (schema ``gyrotherm.diagnosis/1``).
 4. Optionally (:func:`export_calibration`) write the chosen extended model as a
@@ -58,7 +58,7 @@ from gyrotherm.analysis._prep import (
     prepare,
     with_tau,
 )
-from gyrotherm.analysis._resolution import Resolution, unresolved
+from gyrotherm.analysis._resolution import Resolution, placement
 from gyrotherm.analysis._resolve import (
     NotResolvable,
     drop_readout_hysteresis,
@@ -256,13 +256,11 @@ def diagnose(
     resolution = Resolution(lsb_c=float(np.median([r.lsb_c for r in readouts])), tau_s=tau_s,
                             hold_s=float(np.median([r.period_s for r in readouts])))
     variables = list(VARIABLES)
-    while True:  # a structure the readout cannot place: a verdict, and search without it
+    while True:  # a structure the readout alone gives: a verdict, and search without it
         search = search_unexplained(selector, final_ev, margin=margin, variables=variables)
-        too_fine = [v for v in (unresolved(u, resolution) for u in search.unexplained) if v]
-        if not too_fine:  # no finer than the readout shows: is it more than the readout's?
-            too_fine = [v for v in (readout_structure(
-                selector, search.catalogued.effects, u, limit, readouts, margin=margin,
-                seed=seed) for u in search.unexplained) if v]
+        too_fine = [v for v in (readout_structure(  # more than the readout alone gives?
+            selector, search.catalogued.effects, u, limit, readouts, margin=margin,
+            seed=seed) for u in search.unexplained) if v]
         if not too_fine:
             break
         for v in too_fine:
@@ -271,6 +269,14 @@ def diagnose(
             notes.append(f"{v.effect} not reported as a finding ({v.verdict}): {v.reason}")
             say(notes[-1])
     final_ev = search.catalogued
+    unexplained = []
+    for u in search.unexplained:  # real, but sharper than the readout can place
+        where_note = placement(u, resolution)
+        if where_note:
+            u = replace(u, evidence=f"{u.evidence}; {where_note}")
+            notes.append(f"unexplained:{u.variable}: {where_note}")
+            say(notes[-1])
+        unexplained.append(u)
     if search.dropped:
         notes.append(f"dropped {', '.join(search.dropped)}: with the unexplained correction it "
                      "no longer earns its place (it stood in for that structure)")
@@ -291,7 +297,7 @@ def diagnose(
             gain=base_ev.heldout_rms_dps / alone.heldout_rms_dps,
         ))
     shapes = shape_notes(selector, final_ev.effects,
-                         [(u.variable, np.array(u.knots)) for u in search.unexplained])
+                         [(u.variable, np.array(u.knots)) for u in unexplained])
     findings = [replace(f, shape=shapes[f.effect]) if f.effect in shapes else f
                 for f in findings]
     notes += [f"{name}: {text}" for name, text in shapes.items()]
@@ -310,7 +316,7 @@ def diagnose(
         residuals=tuple(resid), extended_residuals=tuple(ext_resid),
         heldout_baseline=held_b, heldout_extended=held_e,
         tau_s=tau_s, tau_from_chamber=tau_fit is not None, notes=tuple(notes),
-        unexplained=search.unexplained, not_resolvable=verdicts,
+        unexplained=tuple(unexplained), not_resolvable=verdicts,
     )
     if not simulate:
         return diagnosis
