@@ -230,7 +230,7 @@ def _refresh_from_changes(t: FloatArray, change: NDArray[np.int64],
     from the rows."""
     tc = t[change]
     gaps = np.diff(tc)
-    lo, hi = 1.5 * dt, float(np.min(gaps)) + dt
+    lo, hi = 1.5 * dt, float(np.min(gaps)) + _FIT_ROWS * dt  # a row late, jittered stamps
     if hi <= lo or np.count_nonzero(gaps < lo) > 0.01 * len(gaps):
         return dt, None  # changes on consecutive rows: every row is fresh
     if len(gaps) > _MAX_GAPS:  # evenly spread: the whole run, bounded cost
@@ -251,6 +251,61 @@ def _refresh_from_changes(t: FloatArray, change: NDArray[np.int64],
         covered = min(q, period) - max(reach, 1e-9 * q)
         tried += 1
         if tried >= _MAX_LATTICE_TRIES:
+            break
+    return _phase_scan(tc, ok, dt)
+
+
+#: The phase scan's reach about each comb candidate, relative; its most periods per
+#: candidate and distinct candidates; the fewest changes it judges.
+_SCAN_REL = 0.006
+_SCAN_PERIODS = 20_000
+_SCAN_CANDIDATES = 50
+_SCAN_MIN_CHANGES = 20
+
+
+def _phase_scan(tc: FloatArray, combs: FloatArray, dt: float) -> tuple[float, float | None]:
+    """When no lattice unwrapped from the gaps holds the changes: the refresh near a
+    comb candidate on which the change times line up over the whole run, scanned
+    directly. Unwrapping k_c from the gaps fails when the value stays put for hundreds
+    of refreshes (a 1 °C reading on a hold): a candidate 0.1 % off miscounts a 300-s
+    gap by three refreshes. Instead, for periods P within ±:data:`_SCAN_REL` of each
+    distinct candidate (largest first), in steps that move the run's last change by
+    dt/8, the changes' phases t_c mod P are taken and the period whose most changes
+    fall in one window of :data:`_FIT_ROWS` rows (wrapping round) is kept; it is the
+    refresh when that holds ≥ :data:`_LATTICE_MIN` of the changes and it is at least
+    :data:`_MIN_REFRESH_ROWS` rows. Else every row is taken as fresh."""
+    # the steps are dt·P/(8·span): a span of changes that keeps a scan ≤ _SCAN_PERIODS
+    t0 = tc - tc[0]
+    t0 = t0[t0 <= _SCAN_PERIODS * dt / (16.0 * _SCAN_REL)]
+    if len(t0) > _MAX_GAPS:
+        t0 = t0[np.linspace(0, len(t0) - 1, _MAX_GAPS).astype(np.int64)]
+    span = float(t0[-1])
+    n = len(t0)
+    if n < _SCAN_MIN_CHANGES:
+        return dt, None
+    width = _FIT_ROWS * dt
+    done: list[float] = []
+    for q in combs.tolist():
+        if q < _MIN_REFRESH_ROWS * dt or any(abs(q / d - 1.0) < _SCAN_REL for d in done):
+            continue
+        done.append(q)
+        step = dt * q / (8.0 * max(span, q))
+        periods = np.arange(q * (1 - _SCAN_REL), q * (1 + _SCAN_REL), step)
+        best, most = q, -1
+        chunk = max(1, 1_000_000 // n)
+        for s in range(0, len(periods), chunk):
+            p = periods[s:s + chunk, None]
+            off = np.sort(np.mod(t0[None, :], p), axis=1)
+            inside = np.minimum(_most_within(np.hstack([off, off + p]), width), n)
+            i = int(np.argmax(inside))
+            if inside[i] > most:
+                best, most = float(periods[s + i]), int(inside[i])
+        if most >= _LATTICE_MIN * n and best >= _MIN_REFRESH_ROWS * dt:
+            off = np.sort(np.mod(t0, best))
+            both = np.r_[off, off + best]
+            start = np.searchsorted(both, both + width, side="right") - np.arange(2 * n)
+            return best, float(tc[0] + both[int(np.argmax(start))] % best)
+        if len(done) >= _SCAN_CANDIDATES:
             break
     return dt, None
 

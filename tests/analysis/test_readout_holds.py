@@ -1,0 +1,52 @@
+"""The readout's refresh period on the generator's chamber runs, whose holds keep a
+coarse reading on one value for hundreds of seconds (the table of
+``test_readout_table.py`` has ramps and warm-ups only).
+
+Found by ``fleet``'s test (a 1 °C reading refreshed every 0.5 s at 10 Hz came out
+0.25 s): unwrapping the refresh count of each gap between changes from a comb
+candidate 0.1 % off miscounts a 300-s gap, and the jittered stamps made the shortest
+gap a hair under P − one row, so the candidates stopped just below P. Seed 41 below
+is where it was found (the cells that missed before the fix); seed 77 was run once on
+the 42-cell grid of :data:`GRID` before and after: 7 misses → 0 (refresh 0.05–0.25 s
+read as one row, or 0.25 s as 0.1 s)."""
+
+from __future__ import annotations
+
+import pytest
+
+from gyrotherm.analysis import SynthConfig
+from gyrotherm.analysis._prep import characterise
+from gyrotherm.analysis.synth._variants import variant_runs
+
+#: (LSB °C, refresh s, rows Hz) that missed on seed 41 before the fix.
+FOUND = ((0.125, 0.1, 50.0), (0.5, 0.1, 50.0), (1.0, 0.1, 50.0), (0.5, 0.5, 10.0),
+         (1.0, 0.5, 10.0), (0.5, 0.25, 10.0), (1.0, 0.25, 10.0))
+#: (LSB °C, refresh s, rows Hz) of the seed-77 grid that missed before the fix.
+GRID = ((0.25, 0.05, 200.0), (0.25, 0.1, 50.0), (1.0, 0.05, 50.0), (1.0, 0.05, 200.0),
+        (1.0, 0.1, 50.0), (1.0, 0.1, 200.0), (1.0, 0.25, 10.0))
+
+
+def _refresh(lsb: float, period: float, hz: float, seed: int, duration_s: float,
+             n_runs: int) -> list[tuple[float, float]]:
+    cfg = SynthConfig(duration_s=duration_s, rate_hz=hz, readout_lsb_c=lsb,
+                      readout_period_s=period)
+    runs, _ = variant_runs(cfg, shapes={}, n_runs=n_runs, seed=seed)
+    out = []
+    for r in runs:
+        got = characterise(r, "x")
+        out.append((float(got.refresh_period_s or 0.0), got.lsb_c))
+    return out
+
+
+@pytest.mark.parametrize(("lsb", "period", "hz"), FOUND)
+def test_seed_41_where_it_was_found(lsb: float, period: float, hz: float) -> None:
+    for refresh, got_lsb in _refresh(lsb, period, hz, 41, 3000.0, 2):
+        assert refresh == pytest.approx(period, rel=0.10)
+        assert got_lsb == pytest.approx(lsb, rel=0.10)
+
+
+@pytest.mark.parametrize(("lsb", "period", "hz"), GRID)
+def test_seed_77_cells_that_missed(lsb: float, period: float, hz: float) -> None:
+    ((refresh, got_lsb),) = _refresh(lsb, period, hz, 77, 1800.0, 1)
+    assert refresh == pytest.approx(period, rel=0.10)
+    assert got_lsb == pytest.approx(lsb, rel=0.10)
