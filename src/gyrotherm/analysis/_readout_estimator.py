@@ -41,6 +41,9 @@ class RunReadout:
     device: str = ""
     """The run's ``device_id`` (metadata; "" when absent): each device's readout chooses
     its own calibration's estimator."""
+    imu: tuple[str, str, str] = ("", "", "")
+    """The run's ``(vehicle_id, device_id, sensor_id)`` ("" when absent): ``fleet`` chooses
+    each IMU's estimator from its own runs."""
 
 
 @dataclass(frozen=True)
@@ -78,7 +81,9 @@ def run_readout(run: Run, axis: str | None = None) -> RunReadout | None:
         return None
     blocks = (prepare(run, axis, EstimatorConfig(tau_s=DEFAULT_TAU_S))
               if run.chamber_c is not None else None)
-    return RunReadout(run.name, readout, blocks, str(run.metadata.get("device_id", "") or ""))
+    vehicle, device, sensor = (str(run.metadata.get(k, "") or "")
+                               for k in ("vehicle_id", "device_id", "sensor_id"))  # an IMU
+    return RunReadout(run.name, readout, blocks, device, (vehicle, device, sensor))
 
 
 def estimator_of(readouts: Sequence[RunReadout]) -> ChosenEstimator:

@@ -5,8 +5,12 @@ The logs (any format ``fit`` reads, of many vehicles) are read and prepared on t
 workers (:mod:`._prep`: ``--jobs``, ``--dask-scheduler``); their runs are grouped by
 IMU, ``(vehicle_id, device_id, sensor_id)`` as the readers give them
 (:mod:`._identity`), in sorted order. Each IMU's runs are fitted as ``fit`` fits one
-device (rest rows, pooled, its quality gates; an IMU a gate refuses is listed as
-``not fitted`` with the reason, the others go on) and, with ``--previous``, compared
+device (rest rows, its quality gates; an IMU a gate refuses is listed as ``not fitted``
+with the reason, the others go on): with none of the estimator options, each IMU's
+estimator is chosen from its own runs' temperature readout in a first read pass, and
+``--method auto`` picks offsets or pooled from its runs, both as ``fit`` does and
+recorded in the provenance (``estimator_chosen``, ``method_chosen``), so an IMU's
+calibration is the one ``fit`` writes from the same logs. With ``--previous``, compared
 with its previous calibration (:mod:`._drift`: bias shift and held-out residual
 against ``--threshold-dps``). ``--out DIR`` writes each calibration to
 ``DIR/<vehicle>-<device>[-<sensor>].json`` (the identity recorded in its provenance,
@@ -24,16 +28,23 @@ import sys
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from gyrotherm._errors import ConfigError, GyrothermError
 from gyrotherm.cli import _conventions as conv
 from gyrotherm.cli import _drift, _fitgates, _fitrest, _identity, _pool, _prep
-from gyrotherm.cli._common import add_estimator_options, estimator_from_args
+from gyrotherm.cli._common import (
+    add_estimator_options,
+    estimator_from_args,
+    estimator_is_auto,
+)
 from gyrotherm.cli._inputs import add_input_options
 from gyrotherm.codecs import Run
-from gyrotherm.compensation import MODELS, Calibration, RunFeatures
+from gyrotherm.compensation import METHODS, MODELS, Calibration, RunFeatures
 from gyrotherm.estimators import EstimatorConfig
+
+if TYPE_CHECKING:  # the characterisation is imported when it runs (its numpy/scipy cost)
+    from gyrotherm.analysis._readout_estimator import ChosenEstimator, RunReadout
 
 SCHEMA = "gyrotherm.fleet/1"
 
@@ -46,9 +57,12 @@ def _file_name(key: _drift.Key) -> str:
 
 
 def _fit_imu(args: argparse.Namespace, est: EstimatorConfig, key: _drift.Key,
-             runs: Sequence[Run], feats: list[RunFeatures]
+             runs: Sequence[Run], feats: list[RunFeatures],
+             record: dict[str, Any] | None = None,
              ) -> tuple[Calibration | None, list[RunFeatures], str]:
-    """The IMU's calibration (None and the reason when refused) and the runs fitted."""
+    """The IMU's calibration (None and the reason when refused) and the runs fitted;
+    ``record``: how its estimator was chosen (None: given by the options)."""
+    from gyrotherm.cli._offline import _method, _with_estimator_record
     from gyrotherm.compensation import fit
     from gyrotherm.compensation._models import get_model
     from gyrotherm.compensation._quality import check
@@ -60,18 +74,28 @@ def _fit_imu(args: argparse.Namespace, est: EstimatorConfig, key: _drift.Key,
         return None, feats, "quality gate: " + "; ".join(refusing)
     try:
         _identity.check_autopilot_frames(runs)
-        cal = fit(feats, args.model, estimator=est, method="pooled")
+        method, method_chosen = _method(args, feats, label=f"{_label(key)}: ")
+        cal = fit(feats, args.model, estimator=est, method=method)
     except GyrothermError as exc:
         return None, feats, str(exc)
     ids = {k: v for k, v in zip(_drift.KEYS, key, strict=True) if v}
-    cal = replace(cal, provenance={**cal.provenance, **ids})
+    cal = _with_estimator_record(cal, record)
+    cal = replace(cal, provenance={**cal.provenance, **ids,
+                                   **({"method_chosen": method_chosen} if method_chosen else {})})
     return _fitgates.record(cal, gates), feats, ""
+
+
+def _label(key: _drift.Key) -> str:
+    """How a note names an IMU: vehicle/device[/sensor]."""
+    vehicle, device, sensor = key
+    return "/".join(p for p in (vehicle or "(no vehicle)", device or "(no device)",
+                                sensor if sensor and sensor != device else "") if p)
 
 
 def _entry(args: argparse.Namespace, est: EstimatorConfig, key: _drift.Key,
            runs: list[Run], feats: list[RunFeatures], previous: list[_drift.Previous],
-           out_dir: Path | None) -> dict[str, Any]:
-    cal, used, reason = _fit_imu(args, est, key, runs, feats)
+           out_dir: Path | None, record: dict[str, Any] | None = None) -> dict[str, Any]:
+    cal, used, reason = _fit_imu(args, est, key, runs, feats, record)
     entry: dict[str, Any] = {**dict(zip(_drift.KEYS, key, strict=True)),
                              "runs": [f.name for f in used],
                              "logs": sorted({r.source for r in runs})}
@@ -112,9 +136,21 @@ def cmd_fleet(args: argparse.Namespace) -> int:
     est = estimator_from_args(args)
     previous = _drift.load_previous(args.previous)
     out_dir = conv.output_dir(args.out, option="--out") if args.out else None
-    loaded = _prep.load(args, _prep.prep_from_args(args, estimator=est, keep_rows=False))
+    logs, failed_first = list(args.runs), []
+    chosen: dict[_drift.Key, ChosenEstimator] = {}
+    if estimator_is_auto(args):  # a first pass characterises each IMU's readout
+        first = _prep.load(args, _prep.prep_from_args(args, keep_rows=False, readout=True))
+        chosen = _chosen(first.runs, first.readouts, quiet=args.quiet)
+        logs, failed_first = first.paths, first.failed
+    loaded = _prep.load(args, _prep.prep_from_args(
+        args, estimator=est, keep_rows=False,
+        imu_estimators={k: c.estimator for k, c in chosen.items()}), logs,
+        notes=not chosen)  # the first pass said the logs' damage
+    if failed_first:  # exit 2 once the others are reported
+        loaded = replace(loaded, failed=[*failed_first, *loaded.failed])
     feats = _fitrest.mask_motion(loaded.features, loaded.reports)
-    imus = [_entry(args, est, key, runs, fs, previous, out_dir)
+    imus = [_entry(args, chosen[key].estimator if key in chosen else est, key, runs, fs,
+                   previous, out_dir, chosen[key].to_dict() if key in chosen else None)
             for key, (runs, fs) in _groups(loaded.runs, feats).items()]
     if args.json:
         conv.emit_json({"schema": SCHEMA, "threshold_dps": args.threshold_dps,
@@ -125,6 +161,20 @@ def cmd_fleet(args: argparse.Namespace) -> int:
 
         print_fleet(imus, threshold_dps=args.threshold_dps, previous=bool(args.previous))
     return loaded.exit_status
+
+
+def _chosen(runs: Sequence[Run], readouts: Sequence[RunReadout], *,
+            quiet: bool) -> dict[_drift.Key, ChosenEstimator]:
+    """Per IMU of ``runs``, the estimator from its own runs' readouts; said on stderr
+    unless ``-q``."""
+    from gyrotherm.analysis._readout_estimator import estimator_of
+
+    keys = list(dict.fromkeys(_drift.identity(r.metadata) for r in runs))
+    chosen = {k: estimator_of([o for o in readouts if o.imu == k]) for k in keys}
+    if not quiet:
+        for k, c in chosen.items():
+            print(f"note: {_label(k)}: {c.describe()}", file=sys.stderr)
+    return chosen
 
 
 _DEFINITIONS = {
@@ -156,7 +206,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "(created; default: not written)")
     conv.add_json_option(p, what="every IMU: identity, calibration, drift numbers "
                          f"(schema {SCHEMA})")
-    add_estimator_options(p)
+    p.add_argument("--method", choices=("auto", *METHODS), default="auto",
+                   help="as fit's --method, per IMU (default auto: offsets when at least "
+                   "half of its runs' temperature variance is within runs, else pooled)")
+    add_estimator_options(p, auto=True)
     add_input_options(p)
     _fitrest.add_rest_options(p)
     _pool.add_worker_options(p)

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from gyrotherm._errors import GyrothermError, RunFileError
-from gyrotherm.cli import _pool
+from gyrotherm.cli import _drift, _pool
 from gyrotherm.cli._common import damage_notes, progress
 from gyrotherm.cli._fitrest import rest_config, rest_of
 from gyrotherm.cli._guard import EXIT_USER_ERROR
@@ -59,6 +59,9 @@ class Prep:
     """(device id, estimator) pairs: a run of a device listed here is estimated with its
     own (``fit`` choosing each device's estimator from its readout), the others with
     ``estimator``."""
+    imu_estimators: tuple[tuple[tuple[str, str, str], EstimatorConfig], ...] = ()
+    """((vehicle id, device id, sensor id), estimator) pairs, looked up before
+    ``device_estimators`` (``fleet`` choosing each IMU's estimator from its readout)."""
     keep_rows: bool = True
     """Return whole runs; False: headers only (``Run.slice(0, 0)``)."""
     readout: bool = False
@@ -103,6 +106,15 @@ def error_line(path: str, exc: BaseException) -> str:
     return text if (path in text or Path(path).name in text) else f"{path}: {text}"
 
 
+def _estimator_of(run: Run, prep: Prep) -> EstimatorConfig:
+    """The estimator for ``run``: its IMU's, else its device's, else ``prep.estimator``."""
+    chosen = dict(prep.imu_estimators).get(_drift.identity(run.metadata))
+    if chosen is None:
+        chosen = dict(prep.device_estimators).get(run.metadata.get("device_id", ""))
+    assert prep.estimator is not None
+    return chosen or prep.estimator
+
+
 def prepare_log(path: str, prep: Prep) -> LogResult:
     """Read and prepare one log (module docstring); never raises for the log's own
     errors (without ``prep.debug``): they are the result's ``error``."""
@@ -116,9 +128,7 @@ def prepare_log(path: str, prep: Prep) -> LogResult:
         if prep.estimator is not None:
             from gyrotherm.compensation import features
 
-            by_device = dict(prep.device_estimators)
-            feats = tuple(features(r, by_device.get(r.metadata.get("device_id", ""),
-                                                    prep.estimator)) if w else None
+            feats = tuple(features(r, _estimator_of(r, prep)) if w else None
                           for r, w in zip(runs, wanted, strict=True))
         readouts: tuple[RunReadout | None, ...] = ()
         if prep.readout:
@@ -166,11 +176,14 @@ class Loaded:
 
 def prep_from_args(args: argparse.Namespace, *, estimator: EstimatorConfig | None = None,
                    keep_rows: bool = True, readout: bool = False,
-                   device_estimators: dict[str, EstimatorConfig] | None = None) -> Prep:
+                   device_estimators: dict[str, EstimatorConfig] | None = None,
+                   imu_estimators: dict[tuple[str, str, str], EstimatorConfig] | None = None,
+                   ) -> Prep:
     rest = None if getattr(args, "rest", "all") == "all" or readout else rest_config(args)
     return Prep(spec=spec_from_args(args), devices=tuple(getattr(args, "device", None) or ()),
                 rest=rest, estimator=estimator, keep_rows=keep_rows, readout=readout,
                 device_estimators=tuple((device_estimators or {}).items()),
+                imu_estimators=tuple((imu_estimators or {}).items()),
                 debug=bool(getattr(args, "debug", False)))
 
 
