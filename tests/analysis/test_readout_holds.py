@@ -6,9 +6,10 @@ Found by ``fleet``'s test (a 1 °C reading refreshed every 0.5 s at 10 Hz came o
 0.25 s): unwrapping the refresh count of each gap between changes from a comb
 candidate 0.1 % off miscounts a 300-s gap, and the jittered stamps made the shortest
 gap a hair under P − one row, so the candidates stopped just below P. Seed 41 below
-is where it was found (the cells that missed before the fix); seed 77 was run once on
-the 42-cell grid of :data:`GRID` before and after: 7 misses → 0 (refresh 0.05–0.25 s
-read as one row, or 0.25 s as 0.1 s)."""
+is where it was found (the cells that missed before the fix); seed 77's are the cells
+of a 42-cell grid (LSB 0.0625, 0.25, 1 °C × refresh 0.05, 0.1, 0.25, 0.64, 1.3 s × 10,
+50, 200 Hz, 30-min runs) that missed before it (seeds 77–82: 44 misses of 252 before,
+0 after; docs/findings.md §6)."""
 
 from __future__ import annotations
 

@@ -252,62 +252,96 @@ def _refresh_from_changes(t: FloatArray, change: NDArray[np.int64],
         tried += 1
         if tried >= _MAX_LATTICE_TRIES:
             break
-    return _phase_scan(tc, ok, dt)
+    if len(ok):  # the combs that fit the gaps first (a narrower range: a longer scan)
+        narrow = max(lo, float(ok[-1]) * (1 - 1e-3)), min(hi, float(ok[0]) * (1 + 1e-3))
+        period, phase = _phase_scan(tc, *narrow, dt)
+        if phase is not None:
+            return period, phase
+    return _phase_scan(tc, lo, hi, dt)
 
 
-#: The phase scan's reach about each comb candidate, relative; its most periods per
-#: candidate and distinct candidates; the fewest changes it judges.
-_SCAN_REL = 0.006
-_SCAN_PERIODS = 20_000
-_SCAN_CANDIDATES = 50
-_SCAN_MIN_CHANGES = 20
+#: The phase scan (:func:`_phase_scan`): the changes its coarse stage takes (at least,
+#: at most), its most periods, how many of its candidates it refines over the whole run, and
+#: the most changes the refinement judges (a bounded cost: well under a second).
+_SCAN_MIN_CHANGES = 12
+_SCAN_COARSE_CHANGES = 40
+_SCAN_PERIODS = 30_000
+_SCAN_REFINE = 8
+_SCAN_CHANGES = 1000
 
 
-def _phase_scan(tc: FloatArray, combs: FloatArray, dt: float) -> tuple[float, float | None]:
-    """When no lattice unwrapped from the gaps holds the changes: the refresh near a
-    comb candidate on which the change times line up over the whole run, scanned
-    directly. Unwrapping k_c from the gaps fails when the value stays put for hundreds
-    of refreshes (a 1 °C reading on a hold): a candidate 0.1 % off miscounts a 300-s
-    gap by three refreshes. Instead, for periods P within ±:data:`_SCAN_REL` of each
-    distinct candidate (largest first), in steps that move the run's last change by
-    dt/8, the changes' phases t_c mod P are taken and the period whose most changes
-    fall in one window of :data:`_FIT_ROWS` rows (wrapping round) is kept; it is the
-    refresh when that holds ≥ :data:`_LATTICE_MIN` of the changes and it is at least
-    :data:`_MIN_REFRESH_ROWS` rows. Else every row is taken as fresh."""
-    # the steps are dt·P/(8·span): a span of changes that keeps a scan ≤ _SCAN_PERIODS
-    t0 = tc - tc[0]
-    t0 = t0[t0 <= _SCAN_PERIODS * dt / (16.0 * _SCAN_REL)]
-    if len(t0) > _MAX_GAPS:
-        t0 = t0[np.linspace(0, len(t0) - 1, _MAX_GAPS).astype(np.int64)]
-    span = float(t0[-1])
+def _aligned(t0: FloatArray, periods: FloatArray, width: float) -> NDArray[np.int64]:
+    """Per period P, the most of the change times ``t0`` whose phase t mod P falls in
+    one window of ``width`` (wrapping round)."""
     n = len(t0)
-    if n < _SCAN_MIN_CHANGES:
-        return dt, None
+    out = np.empty(len(periods), dtype=np.int64)
+    chunk = max(1, 1_000_000 // n)
+    for s in range(0, len(periods), chunk):
+        p = periods[s:s + chunk, None]
+        off = np.sort(np.mod(t0[None, :], p), axis=1)
+        out[s:s + chunk] = np.minimum(_most_within(np.hstack([off, off + p]), width), n)
+    return out
+
+
+def _phase_scan(tc: FloatArray, lo: float, hi: float, dt: float
+                ) -> tuple[float, float | None]:
+    """When no lattice unwrapped from the gaps holds the changes: the refresh on which
+    the change times line up, scanned directly. Unwrapping the refresh count of each gap
+    fails when the value stays put for hundreds of refreshes (a 1 °C reading on a hold):
+    a candidate 0.1 % off miscounts a 300-s gap by three refreshes.
+
+    Coarse: every period in [``lo``, ``hi``] (the range of the comb candidates that fit
+    the gaps, then the whole candidate range), in steps that move the first
+    :data:`_SCAN_COARSE_CHANGES` changes' last one by dt/4 (the window is 1.1 rows),
+    scored by how many of those
+    changes fall in one window of :data:`_FIT_ROWS` rows of their phase t mod P. Fine:
+    about the coarse periods holding ≥ :data:`_LATTICE_MIN` of those changes, longest
+    first (the refresh's divisors hold them too; at most :data:`_SCAN_REFINE` distinct),
+    steps that move the run's last change by dt/8, scored on (up to
+    :data:`_SCAN_CHANGES` of) all the changes. The first period holding
+    ≥ :data:`_LATTICE_MIN` of them, at least :data:`_MIN_REFRESH_ROWS` rows, is the
+    refresh; else every row is taken as fresh."""
     width = _FIT_ROWS * dt
-    done: list[float] = []
-    for q in combs.tolist():
-        if q < _MIN_REFRESH_ROWS * dt or any(abs(q / d - 1.0) < _SCAN_REL for d in done):
+    t0 = tc - tc[0]
+    m = min(len(t0), _SCAN_COARSE_CHANGES)
+    if not hi > lo:
+        return dt, None
+    per_s = 4.0 * math.log(hi / lo) / dt  # coarse periods per second of span
+    while m > _SCAN_MIN_CHANGES and per_s * float(t0[m - 1]) > _SCAN_PERIODS:
+        m -= 1
+    if m < _SCAN_MIN_CHANGES or not t0[m - 1] > 0:
+        return dt, None
+    head = t0[:m]
+    count = int(min(per_s * float(head[-1]), _SCAN_PERIODS)) + 2
+    coarse = np.geomspace(lo, hi, count)
+    score = _aligned(head, coarse, width)
+    keep = coarse[score >= _LATTICE_MIN * m][::-1]  # longest first: P/2, P/3 fit too
+    everyone = t0 if len(t0) <= _SCAN_CHANGES else \
+        t0[np.linspace(0, len(t0) - 1, _SCAN_CHANGES).astype(np.int64)]
+    span = float(everyone[-1])
+    rel = math.log(hi / lo) / max(count - 1, 1)  # one coarse step, relative
+    found: list[float] = []
+    tried: list[float] = []
+    for q in keep.tolist():
+        if any(abs(q / d - 1.0) < rel for d in tried):
             continue
-        done.append(q)
-        step = dt * q / (8.0 * max(span, q))
-        periods = np.arange(q * (1 - _SCAN_REL), q * (1 + _SCAN_REL), step)
-        best, most = q, -1
-        chunk = max(1, 1_000_000 // n)
-        for s in range(0, len(periods), chunk):
-            p = periods[s:s + chunk, None]
-            off = np.sort(np.mod(t0[None, :], p), axis=1)
-            inside = np.minimum(_most_within(np.hstack([off, off + p]), width), n)
-            i = int(np.argmax(inside))
-            if inside[i] > most:
-                best, most = float(periods[s + i]), int(inside[i])
-        if most >= _LATTICE_MIN * n and best >= _MIN_REFRESH_ROWS * dt:
-            off = np.sort(np.mod(t0, best))
-            both = np.r_[off, off + best]
-            start = np.searchsorted(both, both + width, side="right") - np.arange(2 * n)
-            return best, float(tc[0] + both[int(np.argmax(start))] % best)
-        if len(done) >= _SCAN_CANDIDATES:
+        tried.append(q)
+        steps = int(min(2.0 * rel * q / (dt * q / (8.0 * span)), 400)) + 1
+        fine = q * (1.0 + np.linspace(-rel, rel, steps))
+        inside = _aligned(everyone, fine, width)
+        best = int(np.argmax(inside))
+        if inside[best] >= _LATTICE_MIN * len(everyone) and fine[best] >= _MIN_REFRESH_ROWS * dt:
+            found.append(float(fine[best]))
             break
-    return dt, None
+        if len(tried) >= _SCAN_REFINE:
+            break
+    if not found:
+        return dt, None
+    period = found[0]
+    off = np.sort(np.mod(t0, period))
+    both = np.r_[off, off + period]
+    start = np.searchsorted(both, both + width, side="right") - np.arange(len(both))
+    return period, float(tc[0] + both[int(np.argmax(start))] % period)
 
 
 #: The window of the local polynomial the white noise is measured about, s, and its
