@@ -254,9 +254,9 @@ def _refresh_from_changes(t: FloatArray, change: NDArray[np.int64],
             break
     if len(ok):  # the combs that fit the gaps first (a narrower range: a longer scan)
         narrow = max(lo, float(ok[-1]) * (1 - 1e-3)), min(hi, float(ok[0]) * (1 + 1e-3))
-        period, phase = _phase_scan(tc, *narrow, dt)
-        if phase is not None:
-            return period, phase
+        scanned = _phase_scan(tc, *narrow, dt)
+        if scanned[1] is not None:
+            return scanned
     return _phase_scan(tc, lo, hi, dt)
 
 
