@@ -15,7 +15,10 @@ in the main process) as a child process:
 * ``jobs2``: ``--jobs 2``, a local process pool;
 * ``dask2``: ``--dask-scheduler`` of a ``distributed.LocalCluster(n_workers=2,
   threads_per_worker=1, processes=True)`` started by this script before the rounds
-  (an existing cluster: its start-up is not timed).
+  (an existing cluster: its start-up is not timed);
+* ``jobs2_given``: ``--jobs 2 --tau-s 120``: an estimator option given, so no first
+  pass characterising each IMU's readout (``fleet`` since fded0ed reads every log
+  twice without one): the ratio to ``jobs2`` is that pass's cost.
 
 The configurations are measured round-robin (``--rounds``), so a change of the
 machine's load hits all alike; medians per configuration and ratios to ``jobs1`` of
@@ -147,16 +150,18 @@ def main() -> int:
     rows = int(args.rows)
     logs = _generate(work, args.logs, rows)
     mb = round(sum(p.stat().st_size for p in logs) / 1e6, 1)
-    results: dict[str, list[dict[str, Any]]] = {"jobs1": [], "jobs2": [], "dask2": []}
+    results: dict[str, list[dict[str, Any]]] = {"jobs1": [], "jobs2": [], "dask2": [],
+                                                "jobs2_given": []}
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                       dashboard_address=None) as cluster:
         configs = {"jobs1": ["--jobs", "1"], "jobs2": ["--jobs", "2"],
-                   "dask2": ["--dask-scheduler", str(cluster.scheduler_address)]}
+                   "dask2": ["--dask-scheduler", str(cluster.scheduler_address)],
+                   "jobs2_given": ["--jobs", "2", "--tau-s", "120"]}
         for k in range(args.rounds):
             for name, workers in configs.items():
                 m = _once(name, logs, work / f"out{k}", workers)
                 results[name].append(m)
-                print(f"round {k + 1} {name:<6} {m['elapsed_s']:7.2f} s "
+                print(f"round {k + 1} {name:<11} {m['elapsed_s']:7.2f} s "
                       f"{m['logs_per_min']:7.1f} logs/min  worker peak MB "
                       f"{m['worker_peak_rss_mb']}", file=sys.stderr, flush=True)
     summary = {name: _summary(r) for name, r in results.items()}
