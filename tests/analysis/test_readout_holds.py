@@ -13,10 +13,11 @@ of a 42-cell grid (LSB 0.0625, 0.25, 1 °C × refresh 0.05, 0.1, 0.25, 0.64, 1.3
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from gyrotherm.analysis import SynthConfig
-from gyrotherm.analysis._prep import characterise
+from gyrotherm.analysis._prep import _phase_scan, _refresh_from_changes, characterise
 from gyrotherm.analysis.synth._variants import variant_runs
 
 #: (LSB °C, refresh s, rows Hz) that missed on seed 41 before the fix.
@@ -51,3 +52,27 @@ def test_seed_77_cells_that_missed(lsb: float, period: float, hz: float) -> None
     ((refresh, got_lsb),) = _refresh(lsb, period, hz, 77, 1800.0, 1)
     assert refresh == pytest.approx(period, rel=0.10)
     assert got_lsb == pytest.approx(lsb, rel=0.10)
+
+
+def test_a_long_run_of_rare_changes_refines_to_the_refresh() -> None:
+    """Hand-built change times: a 0.1-s refresh seen at the first 50-Hz row after it
+    (±2 % stamp jitter), 40 changes close together, then one every 100–500 s for 10 h,
+    so the run is ~750× longer than the changes the coarse scan sees. The phase scan
+    (called directly: here the lattice finds it too) refines over spans 4× longer each
+    time and ends on 0.1 s within 1e-6 relative (a step of the run's last change well
+    under a row), not on a divisor (0.05 s holds every change too) nor on one row; its
+    phase is a refresh instant (3.7 s + k·0.1 s, seen up to a row later)."""
+    rng = np.random.default_rng(7)
+    dt, refresh = 0.02, 0.1
+    rows = np.cumsum(rng.uniform(0.98, 1.02, size=int(36_000 / dt)) * dt)
+    k = np.cumsum(np.r_[rng.integers(5, 20, size=40), rng.integers(1000, 5000, size=120)])
+    seen = np.unique(np.searchsorted(rows, 3.7 + k * refresh))  # first row after each
+    tc = rows[seen[seen < len(rows)]]
+    for lo, hi in ((0.09, 0.11), (1.5 * dt, float(np.min(np.diff(tc))) + 1.1 * dt)):
+        got, phase = _phase_scan(tc, lo, hi, dt)
+        assert got == pytest.approx(refresh, rel=1e-6)
+        assert phase is not None
+        lag = (phase - 3.7) % refresh  # after the refresh instant, by less than a row
+        assert lag < 1.05 * dt or lag > refresh - 0.05 * dt
+    assert _refresh_from_changes(rows, seen[seen < len(rows)], dt)[0] == pytest.approx(
+        refresh, rel=1e-6)

@@ -283,6 +283,31 @@ def _aligned(t0: FloatArray, periods: FloatArray, width: float) -> NDArray[np.in
     return out
 
 
+def _refine_period(t0: FloatArray, q: float, step: float, known_s: float,
+                   dt: float) -> float:
+    """The period about ``q`` (±``step``, right over the first ``known_s`` seconds of the
+    change times ``t0``) on which the most changes line up, over spans 4× longer each
+    time up to the whole of ``t0``: at each span, steps that move its last change by
+    dt/8, over the previous span's best plateau (every period that held the most
+    changes) and 2 of its steps either side; the next span starts from the plateau's
+    middle (tens of periods a span, whatever the run's length)."""
+    width = _FIT_ROWS * dt
+    span = float(t0[-1])
+    p, s = q, max(known_s, dt)
+    while True:
+        s = min(span, 4.0 * s)
+        sub = t0[t0 <= s]
+        fine = dt * p / (8.0 * s)
+        k = np.arange(-math.ceil(step / fine), math.ceil(step / fine) + 1, dtype=np.float64)
+        periods = np.asarray(p + k * fine, dtype=np.float64)
+        score = _aligned(sub, periods, width)
+        best = periods[score == score.max()]  # a plateau: every period holding them
+        p = float(best.mean())
+        step = float(best.max() - best.min()) / 2.0 + 2.0 * fine
+        if s >= span:
+            return p
+
+
 def _phase_scan(tc: FloatArray, lo: float, hi: float, dt: float
                 ) -> tuple[float, float | None]:
     """When no lattice unwrapped from the gaps holds the changes: the refresh on which
@@ -297,7 +322,7 @@ def _phase_scan(tc: FloatArray, lo: float, hi: float, dt: float
     changes fall in one window of :data:`_FIT_ROWS` rows of their phase t mod P. Fine:
     about the coarse periods holding ≥ :data:`_LATTICE_MIN` of those changes, longest
     first (the refresh's divisors hold them too; at most :data:`_SCAN_REFINE` distinct),
-    steps that move the run's last change by dt/8, scored on (up to
+    over spans 4× longer each time (:func:`_refine_period`), scored on (up to
     :data:`_SCAN_CHANGES` of) all the changes. The first period holding
     ≥ :data:`_LATTICE_MIN` of them, at least :data:`_MIN_REFRESH_ROWS` rows, is the
     refresh; else every row is taken as fresh."""
@@ -318,7 +343,6 @@ def _phase_scan(tc: FloatArray, lo: float, hi: float, dt: float
     keep = coarse[score >= _LATTICE_MIN * m][::-1]  # longest first: P/2, P/3 fit too
     everyone = t0 if len(t0) <= _SCAN_CHANGES else \
         t0[np.linspace(0, len(t0) - 1, _SCAN_CHANGES).astype(np.int64)]
-    span = float(everyone[-1])
     rel = math.log(hi / lo) / max(count - 1, 1)  # one coarse step, relative
     found: list[float] = []
     tried: list[float] = []
@@ -326,12 +350,10 @@ def _phase_scan(tc: FloatArray, lo: float, hi: float, dt: float
         if any(abs(q / d - 1.0) < rel for d in tried):
             continue
         tried.append(q)
-        steps = int(min(2.0 * rel * q / (dt * q / (8.0 * span)), 400)) + 1
-        fine = q * (1.0 + np.linspace(-rel, rel, steps))
-        inside = _aligned(everyone, fine, width)
-        best = int(np.argmax(inside))
-        if inside[best] >= _LATTICE_MIN * len(everyone) and fine[best] >= _MIN_REFRESH_ROWS * dt:
-            found.append(float(fine[best]))
+        period = _refine_period(everyone, q, rel * q, float(head[-1]), dt)
+        inside = int(_aligned(everyone, np.array([period]), width)[0])
+        if inside >= _LATTICE_MIN * len(everyone) and period >= _MIN_REFRESH_ROWS * dt:
+            found.append(period)
             break
         if len(tried) >= _SCAN_REFINE:
             break
