@@ -17,7 +17,12 @@ import numpy as np
 import pytest
 
 from gyrotherm.analysis import SynthConfig
-from gyrotherm.analysis._prep import _phase_scan, _refresh_from_changes, characterise
+from gyrotherm.analysis._prep import (
+    _longest_multiple,
+    _phase_scan,
+    _refresh_from_changes,
+    characterise,
+)
 from gyrotherm.analysis.synth._variants import variant_runs
 
 #: (LSB °C, refresh s, rows Hz) that missed on seed 41 before the fix.
@@ -76,3 +81,23 @@ def test_a_long_run_of_rare_changes_refines_to_the_refresh() -> None:
         assert lag < 1.05 * dt or lag > refresh - 0.05 * dt
     assert _refresh_from_changes(rows, seen[seen < len(rows)], dt)[0] == pytest.approx(
         refresh, rel=1e-6)
+
+
+def test_a_lattice_on_half_the_refresh_is_lifted_to_the_refresh() -> None:
+    """A lattice unwrapped from the gaps can settle on P/2 (every change sits on it too;
+    the review found 0.25 s for a 0.5-s refresh at 10 Hz): the longest multiple of it,
+    up to the longest possible refresh, on which the changes still line up is taken.
+    Hand-built: a 0.5-s refresh seen at the first 10-Hz row after it (±2 % jitter),
+    changes every 1–40 refreshes for 1 h; from 0.2501 s (P/2, 0.04 % off), 0.5 s."""
+    rng = np.random.default_rng(11)
+    dt, refresh = 0.1, 0.5
+    rows = np.cumsum(rng.uniform(0.98, 1.02, size=int(3600 / dt)) * dt)
+    k = np.cumsum(rng.integers(1, 40, size=400))
+    seen = np.unique(np.searchsorted(rows, 1.23 + k * refresh))
+    tc = rows[seen[seen < len(rows)]]
+    hi = float(np.min(np.diff(tc))) + 1.1 * dt
+    got, phase = _longest_multiple(tc, 0.2501, 1.23, hi, dt)
+    assert got == pytest.approx(refresh, rel=1e-5)
+    lag = (phase - 1.23) % refresh  # a refresh instant, the change seen within a row
+    assert lag < 1.05 * dt or lag > refresh - 0.05 * dt
+    assert _longest_multiple(tc, refresh, 1.23, hi, dt)[0] == refresh  # already the longest

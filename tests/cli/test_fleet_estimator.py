@@ -88,3 +88,19 @@ def test_an_estimator_option_is_used_for_every_imu(
     assert "estimator_chosen" not in cal["provenance"]
     assert imus["veh-b"]["status"] == "not fitted"
     assert "conditioning" in imus["veh-b"]["reason"]
+
+
+def test_a_previous_calibration_with_another_estimator_is_said(
+        logs: dict[tuple[str, str, str], list[str]], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Drift scores the previous calibration on T/ΔT estimated with the new one's
+    estimator; when the previous one's was another, the entry says so."""
+    files = logs[("veh-a", "imu-1", "imu-1")]
+    assert main(["-q", "fleet", *files, "--out", str(tmp_path / "given"), "--tau-s", "200"]) == 0
+    assert main(["-q", "fleet", *files, "--out", str(tmp_path / "auto")]) == 0
+    for previous, differs in (("given", True), ("auto", False)):
+        capsys.readouterr()
+        assert main(["-q", "fleet", *files, "--previous", str(tmp_path / previous),
+                     "--json"]) == 0
+        (imu,) = json.loads(capsys.readouterr().out)["imus"]
+        assert imu["previous"] and imu["previous_estimator_differs"] is differs

@@ -247,7 +247,7 @@ def _refresh_from_changes(t: FloatArray, change: NDArray[np.int64],
             continue
         period, share, reach, phase = _lattice(tc, q, dt)
         if share >= _LATTICE_MIN and period >= _MIN_REFRESH_ROWS * dt:
-            return period, phase
+            return _longest_multiple(tc, period, phase, hi, dt)
         covered = min(q, period) - max(reach, 1e-9 * q)
         tried += 1
         if tried >= _MAX_LATTICE_TRIES:
@@ -268,6 +268,8 @@ _SCAN_COARSE_CHANGES = 40
 _SCAN_PERIODS = 30_000
 _SCAN_REFINE = 8
 _SCAN_CHANGES = 1000
+#: How far (relative) a multiple k·P of a lattice's period is searched about k·P.
+_MULTIPLE_REL = 2e-3
 
 
 def _aligned(t0: FloatArray, periods: FloatArray, width: float) -> NDArray[np.int64]:
@@ -320,12 +322,14 @@ def _phase_scan(tc: FloatArray, lo: float, hi: float, dt: float
     :data:`_SCAN_COARSE_CHANGES` changes' last one by dt/4 (the window is 1.1 rows),
     scored by how many of those
     changes fall in one window of :data:`_FIT_ROWS` rows of their phase t mod P. Fine:
-    about the coarse periods holding ≥ :data:`_LATTICE_MIN` of those changes, longest
-    first (the refresh's divisors hold them too; at most :data:`_SCAN_REFINE` distinct),
+    over each contiguous band of coarse periods holding ≥ :data:`_LATTICE_MIN` of those
+    changes (at most :data:`_SCAN_REFINE` bands, longest first), from the band's middle
     over spans 4× longer each time (:func:`_refine_period`), scored on (up to
-    :data:`_SCAN_CHANGES` of) all the changes. The first period holding
-    ≥ :data:`_LATTICE_MIN` of them, at least :data:`_MIN_REFRESH_ROWS` rows, is the
-    refresh; else every row is taken as fresh."""
+    :data:`_SCAN_CHANGES` of) all the changes. Of the refined periods holding
+    ≥ :data:`_LATTICE_MIN` of them and at least :data:`_MIN_REFRESH_ROWS` rows long, the
+    one holding the most is the refresh, the longest among near-ties (within 1 % of the
+    changes: the refresh's divisors hold them all too); else every row is taken as
+    fresh."""
     width = _FIT_ROWS * dt
     t0 = tc - tc[0]
     m = min(len(t0), _SCAN_COARSE_CHANGES)
@@ -340,30 +344,54 @@ def _phase_scan(tc: FloatArray, lo: float, hi: float, dt: float
     count = int(min(per_s * float(head[-1]), _SCAN_PERIODS)) + 2
     coarse = np.geomspace(lo, hi, count)
     score = _aligned(head, coarse, width)
-    keep = coarse[score >= _LATTICE_MIN * m][::-1]  # longest first: P/2, P/3 fit too
+    passing = np.flatnonzero(score >= _LATTICE_MIN * m)
     everyone = t0 if len(t0) <= _SCAN_CHANGES else \
         t0[np.linspace(0, len(t0) - 1, _SCAN_CHANGES).astype(np.int64)]
     rel = math.log(hi / lo) / max(count - 1, 1)  # one coarse step, relative
-    found: list[float] = []
-    tried: list[float] = []
-    for q in keep.tolist():
-        if any(abs(q / d - 1.0) < rel for d in tried):
-            continue
-        tried.append(q)
-        period = _refine_period(everyone, q, rel * q, float(head[-1]), dt)
+    # contiguous bands of passing coarse periods, longest first (P/2, P/3 pass too)
+    bands = np.split(passing, np.flatnonzero(np.diff(passing) > 1) + 1) if len(passing) else []
+    scored: list[tuple[int, float]] = []
+    for band in sorted(bands, key=lambda b: -int(b[-1]))[:_SCAN_REFINE]:
+        a, b = float(coarse[band[0]]), float(coarse[band[-1]])
+        period = _refine_period(everyone, math.sqrt(a * b), (b - a) / 2.0 + rel * b,
+                                float(head[-1]), dt)
         inside = int(_aligned(everyone, np.array([period]), width)[0])
         if inside >= _LATTICE_MIN * len(everyone) and period >= _MIN_REFRESH_ROWS * dt:
-            found.append(period)
-            break
-        if len(tried) >= _SCAN_REFINE:
-            break
-    if not found:
+            scored.append((inside, period))
+    if not scored:
         return dt, None
-    period = found[0]
-    off = np.sort(np.mod(t0, period))
+    most = max(n for n, _ in scored)  # the best; among near-ties the longest
+    period = max(p for n, p in scored if n >= most - 0.01 * len(everyone))
+    return period, _phase_of(tc, period, dt)
+
+
+def _phase_of(tc: FloatArray, period: float, dt: float) -> float:
+    """A refresh instant of ``period``: the start of the one-window (1.1 rows) span of
+    phases t mod P that holds the most of the change times ``tc``."""
+    off = np.sort(np.mod(tc - tc[0], period))
     both = np.r_[off, off + period]
-    start = np.searchsorted(both, both + width, side="right") - np.arange(len(both))
-    return period, float(tc[0] + both[int(np.argmax(start))] % period)
+    start = np.searchsorted(both, both + _FIT_ROWS * dt, side="right") - np.arange(len(both))
+    return float(tc[0] + both[int(np.argmax(start))] % period)
+
+
+def _longest_multiple(tc: FloatArray, period: float, phase: float, hi: float,
+                      dt: float) -> tuple[float, float]:
+    """``period`` or its longest multiple k·P ≤ ``hi`` on which ≥ :data:`_LATTICE_MIN` of
+    the changes (up to :data:`_SCAN_CHANGES` of them) still line up, and its phase: a
+    lattice unwrapped from the gaps can settle on P/2 when its candidate near P failed
+    (every change sits on the P/2 lattice too)."""
+    sub = tc if len(tc) <= _SCAN_CHANGES else \
+        tc[np.linspace(0, len(tc) - 1, _SCAN_CHANGES).astype(np.int64)]
+    t0 = sub - sub[0]
+    head = float(t0[min(len(t0), _SCAN_COARSE_CHANGES) - 1])
+    best = period
+    for k in range(2, int(hi / period * (1 + _MULTIPLE_REL)) + 1):
+        # k·P carries k times P's error: refined about it before it is judged
+        kp = _refine_period(t0, k * period, _MULTIPLE_REL * k * period, head, dt)
+        held = int(_aligned(t0, np.array([kp]), _FIT_ROWS * dt)[0])
+        if held >= _LATTICE_MIN * len(t0):
+            best = kp
+    return (period, phase) if best == period else (best, _phase_of(tc, best, dt))
 
 
 #: The window of the local polynomial the white noise is measured about, s, and its

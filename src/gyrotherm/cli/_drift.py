@@ -157,6 +157,9 @@ def drift(new: Calibration, feats: Sequence[RunFeatures], old: Previous | None, 
     flagged = any(v is not None and v > threshold_dps for v in (s, r))
     return {**out, "status": "drifted" if flagged else "ok", "previous": old.path,
             "previous_fit_time_utc": old.calibration.provenance.get("fit_time_utc"),
+            # the previous calibration is scored on these logs' T/ΔT, estimated with the
+            # new calibration's estimator: say when its own was another
+            "previous_estimator_differs": old.calibration.estimator != new.estimator,
             "shift_dps": _r(s), "shift_axis": s_axis or None,
             "common_range_c": common, "residual_dps": _r(r), "residual_axis": r_axis or None}
 

@@ -106,12 +106,17 @@ def _entry(args: argparse.Namespace, est: EstimatorConfig, key: _drift.Key,
         path = str(cal.save(out_dir / _file_name(key)))
     r = cal.valid_range
     old = _drift.match(key, previous)
-    return {**entry, "calibration": path, "model": cal.model.name,
-            "valid_range_c": [r.t_min_c, r.t_max_c],
-            "coefficients_physical": {a: cal.physical_coefficients(a) for a in cal.axes},
-            "steady_bias_dps": {a: [cal.base_bias(a, r.t_min_c, 0.0),
-                                    cal.base_bias(a, r.t_max_c, 0.0)] for a in cal.axes},
-            **_drift.drift(cal, used, old, threshold_dps=args.threshold_dps)}
+    entry = {**entry, "calibration": path, "model": cal.model.name,
+             "valid_range_c": [r.t_min_c, r.t_max_c],
+             "coefficients_physical": {a: cal.physical_coefficients(a) for a in cal.axes},
+             "steady_bias_dps": {a: [cal.base_bias(a, r.t_min_c, 0.0),
+                                     cal.base_bias(a, r.t_max_c, 0.0)] for a in cal.axes},
+             **_drift.drift(cal, used, old, threshold_dps=args.threshold_dps)}
+    if entry.get("previous_estimator_differs") and not args.quiet:
+        print(f"note: {_label(key)}: the previous calibration's T/ΔT estimator differs from "
+              "this one's; its shift and residual are on T/ΔT estimated with this one",
+              file=sys.stderr)
+    return entry
 
 
 def _groups(runs: Sequence[Run], feats: Sequence[RunFeatures]
@@ -138,14 +143,15 @@ def cmd_fleet(args: argparse.Namespace) -> int:
     out_dir = conv.output_dir(args.out, option="--out") if args.out else None
     logs, failed_first = list(args.runs), []
     chosen: dict[_drift.Key, ChosenEstimator] = {}
-    if estimator_is_auto(args):  # a first pass characterises each IMU's readout
+    auto = estimator_is_auto(args)
+    if auto:  # a first pass characterises each IMU's readout
         first = _prep.load(args, _prep.prep_from_args(args, keep_rows=False, readout=True))
         chosen = _chosen(first.runs, first.readouts, quiet=args.quiet)
         logs, failed_first = first.paths, first.failed
     loaded = _prep.load(args, _prep.prep_from_args(
         args, estimator=est, keep_rows=False,
         imu_estimators={k: c.estimator for k, c in chosen.items()}), logs,
-        notes=not chosen)  # the first pass said the logs' damage
+        notes=not auto)  # the first pass said the logs' damage
     if failed_first:  # exit 2 once the others are reported
         loaded = replace(loaded, failed=[*failed_first, *loaded.failed])
     feats = _fitrest.mask_motion(loaded.features, loaded.reports)
@@ -184,6 +190,9 @@ _DEFINITIONS = {
                     "mean of raw − bias at rest; RMS over runs; max over axes, °/s",
     "residual_new_dps": "the same for the new fit (its floor: switch-on offsets)",
     "drifted": "shift_dps or residual_dps above threshold_dps",
+    "previous_estimator_differs": "the previous calibration's T/ΔT estimator is not the new "
+                                  "one's; shift and residual evaluate it on T/ΔT estimated "
+                                  "with the new one (each IMU's is chosen from its readout)",
 }
 
 
