@@ -132,7 +132,7 @@ def _comb(gaps: FloatArray, dt: float, lo: float, hi: float) -> tuple[FloatArray
     count = int(min(max(math.log(hi / lo) / step, 2.0), 400_000))
     if count * len(gaps) > _COMB_BUDGET:  # evenly spread gaps: bounded cost
         keep = max(50, _COMB_BUDGET // count)
-        gaps = gaps[np.linspace(0, len(gaps) - 1, min(keep, len(gaps))).astype(np.int64)]
+        gaps = _spread(gaps, keep)
     cand = np.geomspace(lo, hi, count)
     tol = _FIT_ROWS * dt
     snapped, fit = np.empty(count), np.empty(count)
@@ -233,8 +233,7 @@ def _refresh_from_changes(t: FloatArray, change: NDArray[np.int64],
     lo, hi = 1.5 * dt, float(np.min(gaps)) + _FIT_ROWS * dt  # a row late, jittered stamps
     if hi <= lo or np.count_nonzero(gaps < lo) > 0.01 * len(gaps):
         return dt, None  # changes on consecutive rows: every row is fresh
-    if len(gaps) > _MAX_GAPS:  # evenly spread: the whole run, bounded cost
-        gaps = gaps[np.linspace(0, len(gaps) - 1, _MAX_GAPS).astype(np.int64)]
+    gaps = _spread(gaps, _MAX_GAPS)  # the whole run, bounded cost
     snapped, fit = _comb(gaps, dt, lo, hi)
     # the refresh fits (almost) every gap; with a row's tolerance a short comb fits
     # most of them by chance, so only the combs that fit nearly as well are tried
@@ -270,6 +269,13 @@ _SCAN_REFINE = 8
 _SCAN_CHANGES = 1000
 #: How far (relative) a multiple k·P of a lattice's period is searched about k·P.
 _MULTIPLE_REL = 2e-3
+
+
+def _spread(values: FloatArray, most: int) -> FloatArray:
+    """``values``, or ``most`` of them evenly spread (the first and last kept)."""
+    if len(values) <= most:
+        return values
+    return values[np.linspace(0, len(values) - 1, most).astype(np.int64)]
 
 
 def _aligned(t0: FloatArray, periods: FloatArray, width: float) -> NDArray[np.int64]:
@@ -345,8 +351,7 @@ def _phase_scan(tc: FloatArray, lo: float, hi: float, dt: float
     coarse = np.geomspace(lo, hi, count)
     score = _aligned(head, coarse, width)
     passing = np.flatnonzero(score >= _LATTICE_MIN * m)
-    everyone = t0 if len(t0) <= _SCAN_CHANGES else \
-        t0[np.linspace(0, len(t0) - 1, _SCAN_CHANGES).astype(np.int64)]
+    everyone = _spread(t0, _SCAN_CHANGES)
     rel = math.log(hi / lo) / max(count - 1, 1)  # one coarse step, relative
     # contiguous bands of passing coarse periods, longest first (P/2, P/3 pass too)
     bands = np.split(passing, np.flatnonzero(np.diff(passing) > 1) + 1) if len(passing) else []
@@ -380,8 +385,7 @@ def _longest_multiple(tc: FloatArray, period: float, phase: float, hi: float,
     the changes (up to :data:`_SCAN_CHANGES` of them) still line up, and its phase: a
     lattice unwrapped from the gaps can settle on P/2 when its candidate near P failed
     (every change sits on the P/2 lattice too)."""
-    sub = tc if len(tc) <= _SCAN_CHANGES else \
-        tc[np.linspace(0, len(tc) - 1, _SCAN_CHANGES).astype(np.int64)]
+    sub = _spread(tc, _SCAN_CHANGES)
     t0 = sub - sub[0]
     head = float(t0[min(len(t0), _SCAN_COARSE_CHANGES) - 1])
     best = period
