@@ -38,12 +38,15 @@ class RunReadout:
     name: str
     readout: Readout
     tau_blocks: Prepared | None
-    device: str = ""
-    """The run's ``device_id`` (metadata; "" when absent): each device's readout chooses
-    its own calibration's estimator."""
     imu: tuple[str, str, str] = ("", "", "")
     """The run's ``(vehicle_id, device_id, sensor_id)`` ("" when absent): ``fleet`` chooses
     each IMU's estimator from its own runs."""
+
+    @property
+    def device(self) -> str:
+        """The run's ``device_id`` ("" when absent): ``fit`` chooses each device's
+        calibration's estimator from its own runs."""
+        return self.imu[1]
 
 
 @dataclass(frozen=True)
@@ -83,7 +86,7 @@ def run_readout(run: Run, axis: str | None = None) -> RunReadout | None:
               if run.chamber_c is not None else None)
     vehicle, device, sensor = (str(run.metadata.get(k, "") or "")
                                for k in ("vehicle_id", "device_id", "sensor_id"))  # an IMU
-    return RunReadout(run.name, readout, blocks, device, (vehicle, device, sensor))
+    return RunReadout(run.name, readout, blocks, (vehicle, device, sensor))
 
 
 def estimator_of(readouts: Sequence[RunReadout]) -> ChosenEstimator:
