@@ -103,6 +103,15 @@ change it will score (a structure sharper than the readout can place is reported
 note when it beats the readout replays, instead of a verdict) and before any result on
 it; run once, the shape cases and the generator's own hysteresis, wide hysteresis and
 thermal lag."""
+SHAPE_DEV2_SEEDS = (41, 42, 43, 44, 45, 46, 47, 48, 49, 50)
+"""Second development set for the shapes (round 5), added because SHAPE_DEV_SEEDS showed
+none of the round-4 evaluation's remaining failures (a drift beside a two-exponential
+warm-up, gradient² for a |ΔT| response without its note): what changes in round 5 is
+developed on these (and the earlier development seeds) only."""
+SHAPE_EVAL5_SEEDS = (381, 382, 383, 384, 385)
+"""Fifth evaluation set for the shapes, fixed (the commit adding this line, with
+SHAPE_DEV2_SEEDS) before any round-5 change and before any result on it; run once, the
+shape cases and the generator's own hysteresis, wide hysteresis and thermal lag."""
 NULL_EVAL_SEEDS = tuple(range(5001, 5801))
 """Null-only evaluation (issue 19 item 1, "nulls at scale"): 800 seeds, fixed (the commit
 adding this line) before any result on them was seen; never used while developing; run
@@ -125,7 +134,8 @@ NULL_SETS = (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS, NULL_CONFIRM2_SEEDS)
 SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "shapes-dev": SHAPE_DEV_SEEDS, "shapes-eval": SHAPE_EVAL_SEEDS,
              "shapes-eval2": SHAPE_EVAL2_SEEDS, "shapes-eval3": SHAPE_EVAL3_SEEDS,
-             "shapes-eval4": SHAPE_EVAL4_SEEDS, "null-eval": NULL_EVAL_SEEDS,
+             "shapes-eval4": SHAPE_EVAL4_SEEDS, "shapes-dev2": SHAPE_DEV2_SEEDS,
+             "shapes-eval5": SHAPE_EVAL5_SEEDS, "null-eval": NULL_EVAL_SEEDS,
              "null-confirm": NULL_CONFIRM_SEEDS, "null-confirm2": NULL_CONFIRM2_SEEDS}
 DURATION_S = 6000.0
 STEP_AT_C = 30.0
@@ -440,7 +450,8 @@ def sweep(seeds: Sequence[int], *, quick: bool = False, conditions: Sequence[int
           only: Sequence[str] | None = None) -> list[dict[str, Any]]:
     cases = [c for c in CASES if c.name in QUICK_CASES] if quick else list(CASES)
     if set(seeds) & {*SHAPE_DEV_SEEDS, *SHAPE_EVAL_SEEDS, *SHAPE_EVAL2_SEEDS,
-                     *SHAPE_EVAL3_SEEDS, *SHAPE_EVAL4_SEEDS}:
+                     *SHAPE_EVAL3_SEEDS, *SHAPE_EVAL4_SEEDS, *SHAPE_DEV2_SEEDS,
+                     *SHAPE_EVAL5_SEEDS}:
         cases = list(SHAPE_CASES)
     if only:
         by_name = {c.name: c for c in (*CASES, *SHAPE_CASES)}  # two_exp_warmup in both

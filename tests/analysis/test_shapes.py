@@ -34,6 +34,10 @@ SHAPE_EVAL3_SEEDS = (341, 342, 343, 344, 345)
 """The third set, fixed (the commit adding this line) before the change it scores."""
 SHAPE_EVAL4_SEEDS = (361, 362, 363, 364, 365)
 """The fourth set, fixed (the commit adding this line) before the change it scores."""
+SHAPE_DEV2_SEEDS = (41, 42, 43, 44, 45, 46, 47, 48, 49, 50)
+"""Round 5's development seeds."""
+SHAPE_EVAL5_SEEDS = (381, 382, 383, 384, 385)
+"""The fifth set, fixed (the commit adding this line) before round 5's changes."""
 
 
 def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
@@ -51,6 +55,15 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
     assert sweep.SHAPE_EVAL4_SEEDS == SHAPE_EVAL4_SEEDS
     assert not set(SHAPE_EVAL4_SEEDS) & {*used, *SHAPE_EVAL_SEEDS, *SHAPE_EVAL2_SEEDS,
                                           *SHAPE_EVAL3_SEEDS, *sweep.NULL_EVAL_SEEDS,
+                                          *sweep.NULL_DEV_SEEDS, *sweep.NULL_CONFIRM_SEEDS,
+                                          *sweep.NULL_CONFIRM2_SEEDS}
+    assert sweep.SHAPE_DEV2_SEEDS == SHAPE_DEV2_SEEDS
+    assert sweep.SHAPE_EVAL5_SEEDS == SHAPE_EVAL5_SEEDS
+    assert not set(SHAPE_DEV2_SEEDS) & {*used, *SHAPE_EVAL_SEEDS, *SHAPE_EVAL2_SEEDS,
+                                         *SHAPE_EVAL3_SEEDS, *SHAPE_EVAL4_SEEDS}
+    assert not set(SHAPE_EVAL5_SEEDS) & {*used, *SHAPE_DEV2_SEEDS, *SHAPE_EVAL_SEEDS,
+                                          *SHAPE_EVAL2_SEEDS, *SHAPE_EVAL3_SEEDS,
+                                          *SHAPE_EVAL4_SEEDS, *sweep.NULL_EVAL_SEEDS,
                                           *sweep.NULL_DEV_SEEDS, *sweep.NULL_CONFIRM_SEEDS,
                                           *sweep.NULL_CONFIRM2_SEEDS}
 
