@@ -129,14 +129,19 @@ NULL_CONFIRM2_SEEDS = tuple(range(10001, 10601))
 """Fresh nulls for the same change (round 4), fixed (the commit adding this line) before
 any result on them was seen; run once. Seed j at CONDITIONS[j % 4]: 150 distinct devices
 per condition."""
-NULL_SETS = (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS, NULL_CONFIRM2_SEEDS)
+NULL_CONFIRM3_SEEDS = tuple(range(12001, 12601))
+"""Fresh nulls for round 5's changes, fixed (the commit adding this line) before any
+round-5 change and before any result on them; run once. Seed j at CONDITIONS[j % 4]: 150
+distinct devices per condition."""
+NULL_SETS = (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS, NULL_CONFIRM2_SEEDS, NULL_CONFIRM3_SEEDS)
 """Null-only sets: one device per diagnosis, conditions in turn."""
 SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "shapes-dev": SHAPE_DEV_SEEDS, "shapes-eval": SHAPE_EVAL_SEEDS,
              "shapes-eval2": SHAPE_EVAL2_SEEDS, "shapes-eval3": SHAPE_EVAL3_SEEDS,
              "shapes-eval4": SHAPE_EVAL4_SEEDS, "shapes-dev2": SHAPE_DEV2_SEEDS,
              "shapes-eval5": SHAPE_EVAL5_SEEDS, "null-eval": NULL_EVAL_SEEDS,
-             "null-confirm": NULL_CONFIRM_SEEDS, "null-confirm2": NULL_CONFIRM2_SEEDS}
+             "null-confirm": NULL_CONFIRM_SEEDS, "null-confirm2": NULL_CONFIRM2_SEEDS,
+             "null-confirm3": NULL_CONFIRM3_SEEDS}
 DURATION_S = 6000.0
 STEP_AT_C = 30.0
 CHECKED = {

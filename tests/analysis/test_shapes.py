@@ -66,6 +66,10 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
                                           *SHAPE_EVAL4_SEEDS, *sweep.NULL_EVAL_SEEDS,
                                           *sweep.NULL_DEV_SEEDS, *sweep.NULL_CONFIRM_SEEDS,
                                           *sweep.NULL_CONFIRM2_SEEDS}
+    assert sweep.NULL_CONFIRM3_SEEDS == tuple(range(12001, 12601))
+    assert not set(sweep.NULL_CONFIRM3_SEEDS) & {
+        *used, *SHAPE_DEV2_SEEDS, *SHAPE_EVAL5_SEEDS, *sweep.NULL_EVAL_SEEDS,
+        *sweep.NULL_DEV_SEEDS, *sweep.NULL_CONFIRM_SEEDS, *sweep.NULL_CONFIRM2_SEEDS}
 
 
 def test_periodic_t_by_hand() -> None:
