@@ -400,8 +400,9 @@ def _oracle(rows: Sequence[dict[str, Any]], labels: Sequence[str]) -> list[str]:
     selection's ×1.10 no method reading these variables passes it; above, it is the
     diagnosis' miss."""
     out = ["| condition | shape diagnoses | found | missed | missed, oracle < ×1.10 (below "
-           "the readout) | missed, oracle ≥ ×1.10 (the method's) | oracle gain median "
-           "[min, max] |", "|---|---|---|---|---|---|---|"]
+           "the readout) | missed, oracle ≥ ×1.10 (the method's) | of these, a proxy named "
+           "without the note buys ≥ the oracle's gain | oracle gain median [min, max] |",
+           "|---|---|---|---|---|---|---|---|"]
     shaped = [r for r in rows if r.get("oracle_gain") is not None]
     for label in (*labels, "whole"):
         sel = [r for r in shaped if label in ("whole", r["condition"])]
@@ -409,11 +410,27 @@ def _oracle(rows: Sequence[dict[str, Any]], labels: Sequence[str]) -> list[str]:
             continue
         missed = [r for r in sel if r["missed"]]
         below = sum(1 for r in missed if r["oracle_gain"] < ORACLE_MARGIN)
+        as_much = sum(1 for r in missed if r["oracle_gain"] >= ORACLE_MARGIN
+                      and _proxy_gain(r) >= r["oracle_gain"] / (1.0 + SHAPE_NOTE_MARGIN))
         g = sorted(r["oracle_gain"] for r in sel)
         out.append(f"| {label} | {len(sel)} | {len(sel) - len(missed)} | {len(missed)} | "
-                   f"{below} | {len(missed) - below} | ×{g[len(g) // 2]:.2f} "
+                   f"{below} | {len(missed) - below} | {as_much} | ×{g[len(g) // 2]:.2f} "
                    f"[×{g[0]:.2f}, ×{g[-1]:.2f}] |")
     return out
+
+
+SHAPE_NOTE_MARGIN = 0.03
+"""The shape note's margin (:data:`gyrotherm.analysis._shape_check.SHAPE_MARGIN`)."""
+
+
+def _proxy_gain(row: dict[str, Any]) -> float:
+    """The largest held-out gain of a catalogued proxy of the row's case named in it (0 if
+    none): when it is within the shape note's margin of the oracle gain, the true shape
+    buys no more than the catalogued one on these variables, so no held-out comparison
+    can say the shape differs (the shape, not the structure, is below the readout)."""
+    proxies = {c.name: c.proxies for c in SHAPE_CASES}.get(row["case"], ())
+    return max((n["gain"] for n in row["named"] if n["name"].split(" ")[0] in proxies),
+               default=0.0)
 
 
 def _seed_ranges(seeds: Sequence[int]) -> str:

@@ -73,3 +73,27 @@ def test_a_shape_that_is_not_there_buys_nothing(oracle: ModuleType) -> None:
 def test_no_shape_no_oracle(oracle: ModuleType) -> None:
     runs = _runs(3, 0.0, 0.005)
     assert oracle.oracle_gain({}, runs, _scaling(runs)) is None
+
+
+def test_misses_split_by_what_a_proxy_named_buys(sweep: ModuleType) -> None:
+    """The sweep's oracle table: a miss above ×1.10 whose named catalogued proxy buys at
+    least the oracle's gain (within the shape note's 3 %) is counted apart; a proxy of
+    another case, or one buying less, is not. Rows by hand."""
+    cond = sweep.CONDITIONS[2].name
+
+    def row(case: str, named: list[tuple[str, float]], oracle: float) -> dict[str, object]:
+        return {"case": case, "condition": cond, "missed": ["x"], "oracle_gain": oracle,
+                "named": [{"name": n, "gain": g} for n, g in named]}
+
+    rows = [
+        row("abs_dt", [("gradient_quadratic", 1.76)], 1.77),  # within 3 %: counted
+        row("saturating_dt", [("thermal_lag", 1.10)], 1.20),  # buys less: not
+        row("periodic_t", [("gradient_quadratic", 2.0)], 1.30),  # not periodic_t's proxy
+        row("saturating_dt", [], 1.05),  # below the readout
+    ]
+    assert sweep._proxy_gain(rows[0]) == 1.76
+    assert sweep._proxy_gain(rows[2]) == 0.0
+    line = next(x for x in sweep._oracle(rows, [cond]) if x.startswith(f"| {cond}"))
+    cells = [c.strip() for c in line.strip("|").split("|")]
+    # shapes, found, missed, below, the method's, of these a proxy buys as much
+    assert cells[1:7] == ["4", "0", "4", "1", "3", "1"]

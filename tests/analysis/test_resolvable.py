@@ -167,11 +167,13 @@ def test_the_readout_resolution_of_each_variable() -> None:
 
 
 def test_a_structure_in_delta_t_finer_than_one_code_is_not_resolvable() -> None:
-    """Dev seed 102 (first eval set), nothing injected, corner readout: a spline in ΔT
-    passes the search, but one 1 °C code moves the ΔT estimate by ≈ 6 °C, and readout
-    replays without it give as much: a verdict of the replays, not a finding."""
+    """Null dev seed 6058, nothing injected, corner readout: a spline in ΔT passes the
+    search, but one 1 °C code moves the ΔT estimate by ≈ 6 °C, and readout replays without
+    it give as much: a verdict of the replays, not a finding. (Dev seed 102 showed this
+    until round 5; with the spline's knot count chosen by BIC_eff its ΔT structure no
+    longer passes the search at all.)"""
     runs, _ = variant_runs(SynthConfig(duration_s=6000.0, readout_lsb_c=1.0,
-                                       readout_period_s=1.3), n_runs=3, seed=102)
+                                       readout_period_s=1.3), n_runs=3, seed=6058)
     d = diagnose(runs, simulate=False)
     assert d.findings == () and d.unexplained == ()
     (v,) = [v for v in d.not_resolvable if v.effect == "unexplained:delta_t_c"]
@@ -194,14 +196,15 @@ def test_placement_note_by_hand() -> None:
     assert placement(t_step, replace(res, lsb_c=0.125)) is None
 
 
-def test_a_saturating_gradient_sharper_than_the_corner_shows_is_reported_with_a_note(
+def test_a_saturating_gradient_sharper_than_the_corner_shows_is_reported(
     sweep: ModuleType,
 ) -> None:
     """Shape dev seed 33, saturating ΔT response (tanh, s = 1–2 °C) at the corner, where
     one code moves the ΔT estimate by ≈ 6 °C: its steepest part is narrower than that,
     but it beats the readout replays, so it is an unexplained ΔT finding (held-out gain
-    above the selection's ×1.10), with a note that the readout cannot place it finer;
-    before round 4 it was a verdict and a miss."""
+    above the selection's ×1.10), with a note that the readout cannot place it finer when
+    the spline's steepest span is narrower than one code (the note by hand:
+    test_placement_note_by_hand); before round 4 it was a verdict and a miss."""
     cond = sweep.CONDITIONS[CORNER]
     cfg = SynthConfig(duration_s=sweep.DURATION_S, rate_hz=cond.rate_hz,
                       readout_lsb_c=cond.lsb_c, readout_period_s=cond.period_s)
@@ -210,9 +213,13 @@ def test_a_saturating_gradient_sharper_than_the_corner_shows_is_reported_with_a_
     (u,) = [u for u in d.unexplained if u.variable == "delta_t_c"]
     assert u.gain > 1.10
     assert 2.0 * truth.shapes["saturating_dt"]["scale_c"] < 5.9  # sharper than one code
-    assert u.steepest[1] - u.steepest[0] < 5.9
-    assert "narrower than the readout can place" in u.evidence
-    assert any(n.startswith("unexplained:delta_t_c: its steepest part") for n in d.notes)
+    # the note goes with the steepest span the spline shows: since round 5 its knot count
+    # is chosen by BIC_eff (6 here, 3 °C apart), which can show the span wider than the
+    # true one; the note is then absent, and the finding stands
+    narrow = u.steepest[1] - u.steepest[0] < 5.9
+    assert ("narrower than the readout can place" in u.evidence) == narrow
+    assert any(n.startswith("unexplained:delta_t_c: its steepest part")
+               for n in d.notes) == narrow
     assert "unexplained:delta_t_c" not in {v.effect for v in d.not_resolvable}
 
 

@@ -206,10 +206,24 @@ def test_rate_dependent_hysteresis_is_named_hysteresis() -> None:
     assert abs(f.params["amplitude_dps"] / true - 1.0) < 0.2
 
 
+def test_abs_dt_is_unexplained_in_delta_t_and_makes_gradient_quadratic_redundant() -> None:
+    # dev seed 34: until round 5 |ΔT| was named gradient² with the shape note; with the
+    # spline's knot count chosen by BIC_eff a 5–8-knot spline in ΔT passes in its place
+    d, _ = _diagnosed("abs_dt", seed=34)
+    assert d.findings == ()
+    (u,) = d.unexplained
+    assert u.variable == "delta_t_c" and u.gain > 1.5
+    assert "made gradient_quadratic redundant" in u.evidence
+
+
 def test_abs_dt_named_gradient_quadratic_carries_the_shape_note() -> None:
-    # dev seed 34: |ΔT| is named gradient² (the nearest catalogued form); the spline in
-    # ΔT in its place is better held out, so the finding says the shape differs
-    d, truth = _diagnosed("abs_dt", seed=34)
+    # round 5 dev seed 43 at the corner (1 °C / 1.3 s, 3 runs): |ΔT| is named gradient²
+    # (the nearest catalogued form); the spline in ΔT in its place is better held out, so
+    # the finding says the shape differs
+    cfg = SynthConfig(duration_s=6000.0, rate_hz=10.0, readout_lsb_c=1.0,
+                      readout_period_s=1.3)
+    runs, truth = variant_runs(cfg, shapes={"abs_dt": {}}, n_runs=3, seed=43)
+    d = diagnose(runs, simulate=False)
     (f,) = d.findings
     assert f.effect == "gradient_quadratic" and f.gain > 1.2
     assert "the shape differs" in f.shape and "same sign heating and cooling" in f.shape

@@ -11,9 +11,19 @@ import pytest
 
 from gyrotherm.analysis import Diagnosis, SynthConfig, diagnose
 from gyrotherm.analysis._diagnose import export_calibration
-from gyrotherm.analysis._unexplained import hats, steepest_span
+from gyrotherm.analysis._score import Selector
+from gyrotherm.analysis._select import _compare
+from gyrotherm.analysis._unexplained import (
+    N_KNOTS,
+    evaluate_with,
+    hats,
+    knots_for,
+    spline_knots,
+    steepest_span,
+)
 from gyrotherm.analysis.synth._variants import variant_runs
 from gyrotherm.codecs import Run
+from gyrotherm.compensation import Scaling
 
 CFG = SynthConfig(duration_s=6000.0, rate_hz=10.0)
 STEP_C = 30.0
@@ -105,3 +115,34 @@ def test_no_unexplained_finding_on_clean_data_or_catalogued_effects(
     d = diagnose(runs, simulate=False)
     assert d.unexplained == ()
     assert {f.effect for f in d.findings} == set(effects)
+
+
+def test_the_knot_count_is_chosen_by_bic_and_deployed_as_found() -> None:
+    """Round 5 development seed 43 (SHAPE_DEV2_SEEDS), a periodic bias in T through the
+    corner readout (1 °C / 1.3 s, 3 runs): with 12 knots the spline's ΔBIC_eff is not
+    negative (the blocks' residuals are correlated over minutes), with fewer it is, at a
+    held-out gain well above ×1.10; the search reports it with the knots BIC_eff chose,
+    over the whole range (a periodic bias spans it), and the calibration deploys that many
+    knots."""
+    cfg = SynthConfig(duration_s=6000.0, rate_hz=10.0, readout_lsb_c=1.0,
+                      readout_period_s=1.3)
+    runs, _ = variant_runs(cfg, shapes={"periodic_t": {}}, n_runs=3, seed=43)
+    d = diagnose(runs, simulate=False)
+    (u,) = d.unexplained
+    assert u.variable == "temperature_c" and u.gain > 1.10
+    assert len(u.knots) < N_KNOTS
+    t = np.concatenate([p.temperature_c for p in d.prepared])
+    lo, hi = np.percentile(t, [0.5, 99.5])
+    assert u.where[0] <= lo + 0.1 * (hi - lo) and u.where[1] >= hi - 0.1 * (hi - lo)
+    # why: 12 knots do not pass ΔBIC_eff on the paper model, the chosen count does
+    sel = Selector(list(d.prepared), Scaling.from_data(
+        t, np.concatenate([p.delta_t_c for p in d.prepared])))
+    paper = evaluate_with(sel, {}, [])
+    twelve = evaluate_with(sel, {}, [("temperature_c", knots_for(sel.runs, "temperature_c"))])
+    chosen = spline_knots(sel, {}, [], "temperature_c")
+    fewer = evaluate_with(sel, {}, [("temperature_c", chosen)])
+    assert _compare(paper, twelve)[2] >= 0.0 > _compare(paper, fewer)[2]
+    assert len(chosen) == len(u.knots)
+    cal = export_calibration(runs, d).calibration
+    corr = cal.effects_of("x").correction
+    assert corr is not None and len(corr.knots) == len(u.knots)

@@ -69,6 +69,7 @@ from gyrotherm.analysis._resolve import (
 from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._select import Selection, prune, select
 from gyrotherm.analysis._separable import (
+    drop_drift_like_second_warmup,
     drop_hysteresis_like_gradient,
     drop_inseparable_drift,
 )
@@ -238,10 +239,12 @@ def diagnose(
     final_ev, hyst_verdict = drop_readout_hysteresis(
         selector, final_ev, limit, readouts, margin=margin, seed=seed)
     final_ev, drift_verdict = drop_inseparable_drift(selector, final_ev)
+    final_ev, second_verdict, warmup_note = drop_drift_like_second_warmup(selector, final_ev)
     if hyst_verdict is None:
         final_ev, hyst_verdict = drop_hysteresis_like_gradient(selector, final_ev,
                                                                margin=margin)
-    verdicts = tuple(v for v in (lag_verdict, hyst_verdict, drift_verdict) if v)
+    verdicts = tuple(v for v in (lag_verdict, hyst_verdict, drift_verdict, second_verdict)
+                     if v)
     for v in verdicts:
         notes.append(f"{v.effect} not reported as a physical finding ({v.verdict}): {v.reason}")
         say(notes[-1])
@@ -298,6 +301,8 @@ def diagnose(
         ))
     shapes = shape_notes(selector, final_ev.effects,
                          [(u.variable, np.array(u.knots)) for u in unexplained])
+    if warmup_note and "warmup" in final_ev.effects:
+        shapes["warmup"] = "; ".join(t for t in (shapes.get("warmup"), warmup_note) if t)
     findings = [replace(f, shape=shapes[f.effect]) if f.effect in shapes else f
                 for f in findings]
     notes += [f"{name}: {text}" for name, text in shapes.items()]
@@ -382,5 +387,7 @@ def export_calibration(
     # the first unexplained structure (the largest gain) becomes the axis' correction
     corrections = ({diagnosis.axis: diagnosis.unexplained[0].variable}
                    if diagnosis.unexplained else None)
+    knots = ({diagnosis.axis: len(diagnosis.unexplained[0].knots)}
+             if diagnosis.unexplained else None)
     return fit_effects([estimate(r, est) for r in runs], chosen, estimator=est,
-                       provenance=provenance, corrections=corrections)
+                       provenance=provenance, corrections=corrections, correction_knots=knots)

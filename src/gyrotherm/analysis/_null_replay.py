@@ -190,14 +190,14 @@ def replay_spline(
     on readout replays of the model ``effects`` without it: on each replay the best
     ratio of the model's held-out RMS to that with the spline added, or in place of one
     of the effects (as the search tries it); and how the step-free temperature was made."""
-    from gyrotherm.analysis._unexplained import evaluate_with, knots_for
+    from gyrotherm.analysis._unexplained import evaluate_with, spline_knots
 
     _, how = step_free(selector.runs, crossing_s)
     gains = []
     for null_sel in _null_selectors(selector, dict(effects), readouts, crossing_s, seed=seed,
                                     replays=replays):
-        knots = knots_for(null_sel.runs, variable)
         before = evaluate_with(null_sel, effects, [])
+        knots = spline_knots(null_sel, effects, [], variable, before)  # as the search does
         trials = [evaluate_with(null_sel, {k: v for k, v in effects.items() if k != name},
                                 [(variable, knots)]) for name in ("", *effects)]
         gains.append(before.heldout_rms_dps / min(t.heldout_rms_dps for t in trials))

@@ -13,6 +13,16 @@ would resolve it: runs longer than 6τ) and left out of the model; the warm-up
 is refitted without it, and what the single exponential then leaves is for
 the unexplained search (:mod:`._unexplained`) to name.
 
+A drift beside a warm-up that has decayed is also weighed against a second time
+constant in its place (:func:`drop_drift_like_second_warmup`): a warm-up with two time
+constants (A₁·e^(−t/τ₁) + A₂·e^(−t/τ₂)) leaves, after the single exponential, a slow
+trend that a drift follows over the first part of the runs. A drift goes on for the whole
+run; the second exponential flattens. The drift is kept only when it beats the best
+A₁·e^(−t/τ₁) + A₂·e^(−t/τ₂) in place of warm-up + drift held out (τ₁, τ₂ jointly on the
+warm-up's coarse grid by the fit's residual, 2τ₁ ≤ τ₂ ≤ duration/3, so that the second
+decays within the runs and stays distinct from a line); otherwise it is left out
+with that verdict and the warm-up's note says its shape has a second time constant.
+
 A hysteresis and a response to ΔT that saturates (A·tanh(ΔT/s), or a |ΔT|-like one) are
 both ±A by the direction of the temperature change on ramps; they differ in holds, where
 ΔT → 0 and a hysteresis remembers the last direction. When a linear spline in ΔT in the
@@ -30,6 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from gyrotherm.analysis._effects import TAU_GRIDS
 from gyrotherm.analysis._resolve import NotResolvable
 from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._unexplained import evaluate_with, knots_for
@@ -66,6 +77,60 @@ def drop_inseparable_drift(
               f"{final.heldout_rms_dps:.5f} °/s")
     params = {"slope_dps_per_h": slope, "warmup_tau_s": tau, "duration_s": duration}
     return without, NotResolvable("drift", params, reason, verdict=RUNS_VERDICT)
+
+
+SECOND_TAU_MIN = 2.0
+"""A second warm-up time constant is at least this many times the first."""
+SECOND_WARMUP_VERDICT = "a warm-up's second time constant"
+
+
+def drop_drift_like_second_warmup(
+    selector: Selector, final: Evaluation
+) -> tuple[Evaluation, NotResolvable | None, str | None]:
+    """``final`` without its ``drift`` (the others refitted), the verdict and the warm-up's
+    shape note, when a second warm-up exponential in the drift's place is at least as good
+    held out (module docstring); else ``final``, None, None."""
+    from gyrotherm.analysis._select import _compare, _refine_all
+
+    if not {"drift", "warmup"} <= set(final.effects):
+        return final, None, None
+    duration = float(np.median([p.time_s[-1] - p.time_s[0] for p in selector.runs]))
+    grid = TAU_GRIDS["warmup"][::2]  # both constants on the coarse grid, jointly
+    pairs = [(t1, t2) for t1 in (*grid, float(final.effects["warmup"])) for t2 in grid
+             if SECOND_TAU_MIN * t1 <= t2 <= duration / DECAYED_TAUS]
+    if not pairs:
+        return final, None, None
+    others = {k: v for k, v in final.effects.items() if k not in ("drift", "warmup")}
+
+    def second(tau1: float, tau2: float) -> Evaluation:
+        return evaluate_with(selector, {**others, "warmup": tau1}, [], extra={
+            "warmup_2": lambda p: np.exp(-p.time_s / tau2)})
+
+    fits = {pair: second(*pair) for pair in pairs}
+    tau1, tau2 = min(fits, key=lambda pair: fits[pair].rss)  # profile likelihood
+    alt = fits[(tau1, tau2)]
+    rest = {k: v for k, v in final.effects.items() if k != "drift"}
+    base = evaluate_with(selector, final.effects, [])
+    ratio, improved, _ = _compare(base, alt)  # > 1: the second exponential is better
+    if ratio < 1.0:
+        return final, None, None
+    without = _refine_all(selector, selector.evaluate(rest))
+    slope = float(selector.model(final).params()["drift"]["slope_dps_per_h"])
+    reason = (f"a second warm-up exponential A₂·e^(−t/τ₂), τ₂ = {tau2:.0f} s (beside "
+              f"τ₁ = {tau1:.0f} s, both refitted on the warm-up's grid), in its place is as "
+              "good held out (RMS "
+              f"{alt.heldout_rms_dps:.5f} against {base.heldout_rms_dps:.5f} °/s, ×{ratio:.3f}, "
+              f"better on {improved}/{len(selector.runs)} left-out runs): the slow trend "
+              "decays within the runs, as a warm-up does, where a drift would go on; "
+              f"held-out RMS without the drift {without.heldout_rms_dps:.5f} vs "
+              f"{final.heldout_rms_dps:.5f} °/s")
+    note = (f"the shape differs: a second time constant τ₂ = {tau2:.0f} s beside τ₁ = "
+            f"{tau1:.0f} s explains the slow part of the transient at least as well held out "
+            f"as a drift (×{ratio:.3f}); the catalogued A·exp(−t/τ) has one")
+    params = {"slope_dps_per_h": slope, "warmup_tau_s": float(final.effects["warmup"]),
+              "first_tau_s": tau1, "second_tau_s": tau2,
+              "ratio": ratio}
+    return without, NotResolvable("drift", params, reason, verdict=SECOND_WARMUP_VERDICT), note
 
 
 def drop_hysteresis_like_gradient(

@@ -20,8 +20,9 @@ The calibrated range is that of the per-row estimates.
 
 ``corrections`` (axis → variable) adds the diagnosis' ``unexplained`` structure as the
 axis' deployable ``correction`` (:mod:`gyrotherm.compensation._correction`): on the same
-1-s blocks of the vehicle's features, knots over the blocks' range of the variable
-(:func:`~._unexplained.knots_for`), values fitted to the fitted model's residuals
+1-s blocks of the vehicle's features, as many knots as the diagnosis' spline has (its
+count chosen by BIC_eff, :func:`~._unexplained.spline_knots`) over the blocks' range of
+the variable (:func:`~._unexplained.knots_for`), values fitted to the fitted model's residuals
 (:func:`~._unexplained.two_stage`: the base coefficients and effects stay as fitted),
 and its leave-one-run-out gain recorded in the provenance.
 """
@@ -46,7 +47,7 @@ from gyrotherm.analysis._effects import (
 )
 from gyrotherm.analysis._prep import Prepared
 from gyrotherm.analysis._score import Evaluation, Selector
-from gyrotherm.analysis._unexplained import evaluate_with, knots_for, two_stage
+from gyrotherm.analysis._unexplained import N_KNOTS, evaluate_with, knots_for, two_stage
 from gyrotherm.compensation import (
     Calibration,
     RunFeatures,
@@ -111,10 +112,11 @@ class EffectsFit:
 
 
 def correction_for(selector: Selector, ev: Evaluation, variable: str,
-                   *, source: str) -> tuple[Correction, dict[str, Any]]:
-    """The ``correction`` in ``variable`` on top of the fitted model ``ev`` and its record
-    (leave-one-run-out RMS without and with it, the spline fitted jointly)."""
-    knots = knots_for(selector.runs, variable)
+                   *, source: str, n_knots: int = N_KNOTS) -> tuple[Correction, dict[str, Any]]:
+    """The ``correction`` in ``variable`` (``n_knots`` knots) on top of the fitted model
+    ``ev`` and its record (leave-one-run-out RMS without and with it, the spline fitted
+    jointly)."""
+    knots = knots_for(selector.runs, variable, n_knots)
     values = two_stage(selector.runs, selector.residuals(ev.effects, ev.coefficients),
                        variable, knots)
     before = evaluate_with(selector, ev.effects, [])
@@ -135,10 +137,12 @@ def fit_effects(
     estimator: EstimatorConfig,
     provenance: Mapping[str, Any] | None = None,
     corrections: Mapping[str, str] | None = None,
+    correction_knots: Mapping[str, int] | None = None,
 ) -> EffectsFit:
     """Fit the paper model plus ``effects[axis]`` on every axis of ``effects`` (features
     made with ``estimator``; ≥ 2 runs: the search scores leave-one-run-out), and the
-    ``corrections`` (axis → variable; module docstring)."""
+    ``corrections`` (axis → variable; module docstring) with ``correction_knots`` (axis →
+    knot count, the diagnosis' spline's; default :data:`~._unexplained.N_KNOTS`)."""
     if len(runs) < 2:
         raise CalibrationError(f"fitting effects needs at least 2 runs (the nonlinear "
                                f"parameters are searched leave-one-run-out), got {len(runs)}")
@@ -163,6 +167,7 @@ def fit_effects(
         if corrections and axis in corrections:
             corr[axis], corr_record[axis] = correction_for(
                 selector, ev, corrections[axis],
+                n_knots=(correction_knots or {}).get(axis, N_KNOTS),
                 source=f"unexplained structure of the diagnosis, axis {axis}: linear spline "
                        "fitted to the calibration's residuals (1-s blocks)")
     t = np.concatenate([r.temperature_c for r in runs])

@@ -4,9 +4,12 @@ After selection, the chosen (catalogued) model may still leave structure in
 one variable v ∈ :data:`VARIABLES` (the temperature estimate T, °C; the
 gradient estimate ΔT, °C; time since power-on, s). The correction is a linear
 spline in v, c(v) = Σ_k β_k·φ_k(v), with hat functions φ_k on
-:data:`N_KNOTS` knots spaced evenly over the runs' range of v (constant
-beyond it; the first hat is left out: the hats sum to 1, which the per-run
-offsets already hold). It is fitted *jointly* with the model's columns, with
+K knots spaced evenly over the runs' range of v (constant beyond it; K of
+:data:`KNOT_COUNTS`, the one whose fit has the lowest BIC_eff, :func:`spline_knots`:
+at a coarse readout the blocks' residuals are correlated over minutes, n_eff is small,
+and 11 columns can fail ΔBIC_eff where 5–7 pass with the same held-out gain; the
+first hat is left out: the hats sum to 1, which the per-run offsets already hold).
+It is fitted *jointly* with the model's columns, with
 one offset per run, and scored exactly like the effects (:mod:`._score`):
 leave-one-run-out held-out RMS, runs improved, ΔBIC_eff with k counting the
 K − 1 spline columns. It is reported only when it passes the same entry
@@ -32,7 +35,7 @@ without the correction / with it.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -48,6 +51,9 @@ FloatArray = NDArray[np.float64]
 
 VARIABLES = ("temperature_c", "delta_t_c", "time_since_power_on_s")
 N_KNOTS = 12
+KNOT_COUNTS = (12, 8, 6, 5)
+"""The knot counts a spline in one variable may have; the search takes the one with the
+lowest BIC_eff (:func:`spline_knots`)."""
 SMOOTHING = 0.1
 """λ of the first-difference penalty on the spline, relative to its columns' scale."""
 
@@ -89,13 +95,13 @@ def variable(p: Prepared, name: str) -> FloatArray:
     raise ValueError(f"unknown variable {name!r}; known: {', '.join(VARIABLES)}")
 
 
-def knots_for(runs: Sequence[Prepared], name: str) -> FloatArray:
-    """Evenly spaced knots over the runs' 0.5–99.5 % range of ``name``."""
+def knots_for(runs: Sequence[Prepared], name: str, n_knots: int = N_KNOTS) -> FloatArray:
+    """``n_knots`` evenly spaced knots over the runs' 0.5–99.5 % range of ``name``."""
     v = np.concatenate([variable(p, name) for p in runs])
     lo, hi = np.percentile(v, [0.5, 99.5])
     if hi - lo <= 1e-9:
         hi = lo + 1.0
-    return np.linspace(float(lo), float(hi), N_KNOTS)
+    return np.linspace(float(lo), float(hi), n_knots)
 
 
 def hats(values: FloatArray, knots: FloatArray) -> FloatArray:
@@ -117,15 +123,21 @@ def _centred(a: FloatArray) -> FloatArray:
 def evaluate_with(
     selector: Selector, effects: Mapping[str, float],
     splines: Sequence[tuple[str, FloatArray]],
+    *, extra: Mapping[str, Callable[[Prepared], FloatArray]] | None = None,
 ) -> Evaluation:
     """The model ``effects`` (nonlinear parameters fixed) plus the linear splines
-    (variable, knots), fitted jointly, one offset per run, scored leave-one-run-out."""
+    (variable, knots), fitted jointly, one offset per run, scored leave-one-run-out.
+    ``extra``: further columns (name → the column of a run), unpenalised, fitted with
+    the model's."""
     mats, xs, ys = [], [], []
     columns: tuple[str, ...] = ()
+    more = dict(extra or {})
     for p in selector.runs:
         columns, x = design(p.time_s, p.temperature_c, p.delta_t_c, selector.scaling,
                             effects, hysteresis_follows_lag=selector.coupled)
-        blocks = [x] + [hats(variable(p, v), k)[:, 1:] for v, k in splines]
+        columns = (*columns, *more)
+        blocks = ([x, *(np.asarray(f(p), dtype=np.float64)[:, None] for f in more.values())]
+                  + [hats(variable(p, v), k)[:, 1:] for v, k in splines])
         z = _centred(np.hstack(blocks))
         y = p.rate_dps - p.rate_dps.mean()
         xs.append(z)
@@ -198,6 +210,27 @@ def steepest_span(knots: FloatArray, values: FloatArray) -> tuple[float, float]:
     return float(knots[lo]), float(knots[hi + 1])
 
 
+def spline_knots(
+    selector: Selector, effects: Mapping[str, float],
+    chosen: Sequence[tuple[str, FloatArray]], name: str, current: Evaluation | None = None,
+) -> FloatArray:
+    """The knots of a spline in ``name`` on top of ``effects`` and the splines ``chosen``:
+    the count of :data:`KNOT_COUNTS` whose fit has the lowest BIC_eff (``current``: that
+    model's evaluation, if already made). An in-sample choice; the entry criteria then
+    score the spline held out as before."""
+    from gyrotherm.analysis._select import _compare
+
+    before = current if current is not None else evaluate_with(selector, effects, chosen)
+    best: tuple[float, FloatArray] | None = None
+    for n in KNOT_COUNTS:
+        k = knots_for(selector.runs, name, n)
+        _, _, dbic = _compare(before, evaluate_with(selector, effects, [*chosen, (name, k)]))
+        if best is None or dbic < best[0]:
+            best = (dbic, k)
+    assert best is not None
+    return best[1]
+
+
 def heldout_rms(ev: Evaluation) -> float:
     return math.sqrt(float(np.sum(ev.heldout_sse)) / float(np.sum(ev.heldout_n)))
 
@@ -227,7 +260,6 @@ def search_unexplained(
         ratio, improved, dbic = _compare(before, after)
         return ratio >= 1.0 + margin and improved >= need and dbic < 0.0
 
-    knots = {v: knots_for(selector.runs, v) for v in variables}
     effects = dict(final.effects)
     current = evaluate_with(selector, effects, [])
     chosen: list[tuple[str, FloatArray]] = []
@@ -237,7 +269,9 @@ def search_unexplained(
         # each spline on the model, and in place of each catalogued effect (a cubic
         # bent towards a step must not keep the step's spline below the margin)
         trials: dict[tuple[str, str], Evaluation] = {}
-        for v in (v for v in variables if v not in dict(chosen)):
+        knots = {v: spline_knots(selector, effects, chosen, v, current)
+                 for v in variables if v not in dict(chosen)}
+        for v in knots:
             for name in ("", *effects):
                 rest = {k: x for k, x in effects.items() if k != name}
                 trials[(v, name)] = evaluate_with(selector, rest, [*chosen, (v, knots[v])])
