@@ -139,7 +139,7 @@ def test_the_knot_count_is_chosen_by_bic_and_deployed_as_found() -> None:
         t, np.concatenate([p.delta_t_c for p in d.prepared])))
     paper = evaluate_with(sel, {}, [])
     twelve = evaluate_with(sel, {}, [("temperature_c", knots_for(sel.runs, "temperature_c"))])
-    chosen = spline_knots(sel, {}, [], "temperature_c")
+    chosen = spline_knots(sel, dict(d.extended.effects), [], "temperature_c")
     fewer = evaluate_with(sel, {}, [("temperature_c", chosen)])
     assert _compare(paper, twelve)[2] >= 0.0 > _compare(paper, fewer)[2]
     assert len(chosen) == len(u.knots)

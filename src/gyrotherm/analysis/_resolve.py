@@ -116,8 +116,9 @@ class NotResolvable:
     params: Mapping[str, float]
     reason: str
     verdict: str = VERDICT
-    """``"not resolvable at this readout"``, or ``"not resolvable in these runs"`` where the
-    runs' length, not the readout, is the limit (:mod:`._separable`)."""
+    """``"not resolvable at this readout"``, ``"not resolvable in these runs"`` where the
+    runs' length, not the readout, is the limit, or ``"a warm-up's second time constant"``
+    for a drift a second warm-up exponential matches (both :mod:`._separable`)."""
 
     def to_dict(self) -> dict[str, Any]:
         return {"effect": self.effect, "verdict": self.verdict, "params": dict(self.params),

@@ -20,7 +20,9 @@ trend that a drift follows over the first part of the runs. A drift goes on for 
 run; the second exponential flattens. The drift is kept only when it beats the best
 A₁·e^(−t/τ₁) + A₂·e^(−t/τ₂) in place of warm-up + drift held out (τ₁, τ₂ jointly on the
 warm-up's coarse grid by the fit's residual, 2τ₁ ≤ τ₂ ≤ duration/3, so that the second
-decays within the runs and stays distinct from a line); otherwise it is left out
+decays within the runs and stays distinct from a line; a τ₂ at the end of that range is a
+line's stand-in, and the drift is kept; the second exponential must also be better on at least
+half of the left-out runs); otherwise it is left out
 with that verdict and the warm-up's note says its shape has a second time constant.
 
 A hysteresis and a response to ΔT that saturates (A·tanh(ΔT/s), or a |ΔT|-like one) are
@@ -37,6 +39,8 @@ for the generator's real hysteresis (docs/findings.md §6).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -108,11 +112,13 @@ def drop_drift_like_second_warmup(
 
     fits = {pair: second(*pair) for pair in pairs}
     tau1, tau2 = min(fits, key=lambda pair: fits[pair].rss)  # profile likelihood
+    if tau2 >= max(t2 for _, t2 in pairs):  # at the range's end: it is imitating a line
+        return final, None, None
     alt = fits[(tau1, tau2)]
     rest = {k: v for k, v in final.effects.items() if k != "drift"}
     base = evaluate_with(selector, final.effects, [])
     ratio, improved, _ = _compare(base, alt)  # > 1: the second exponential is better
-    if ratio < 1.0:
+    if ratio < 1.0 or improved < math.ceil(len(selector.runs) / 2):
         return final, None, None
     without = _refine_all(selector, selector.evaluate(rest))
     slope = float(selector.model(final).params()["drift"]["slope_dps_per_h"])

@@ -11,9 +11,11 @@ out — held-out RMS lower by ×(1 + :data:`SHAPE_MARGIN`) and better on at leas
 half of the left-out runs; ΔBIC_eff is reported, not required (the held-out
 score already pays for the spline's freedom, and the note names no new effect)
 — the finding keeps its name (it is the nearest catalogued effect and buys its
-gain) with a note that the shape differs (``Finding.shape``). A spline that also
-passes the selection's entry criteria (×1.10 and ΔBIC_eff < 0) has already
-replaced the effect in the unexplained search. When the unexplained search
+gain) with a note that the shape differs (``Finding.shape``). The check's spline has
+:data:`~._unexplained.N_KNOTS` knots (the search chooses its own count,
+:func:`~._unexplained.spline_knots`); a spline in the effect's place that passes the
+selection's entry criteria (×1.10 and ΔBIC_eff < 0) at the search's count has usually
+already replaced the effect in the unexplained search. When the unexplained search
 already reports a structure in the effect's variable beside it, the effect is
 not the whole of that shape: the note says so.
 

@@ -5,9 +5,9 @@ one variable v ∈ :data:`VARIABLES` (the temperature estimate T, °C; the
 gradient estimate ΔT, °C; time since power-on, s). The correction is a linear
 spline in v, c(v) = Σ_k β_k·φ_k(v), with hat functions φ_k on
 K knots spaced evenly over the runs' range of v (constant beyond it; K of
-:data:`KNOT_COUNTS`, the one whose fit has the lowest BIC_eff, :func:`spline_knots`:
+:data:`KNOT_COUNTS`, the one with the lowest ΔBIC_eff, :func:`spline_knots`:
 at a coarse readout the blocks' residuals are correlated over minutes, n_eff is small,
-and 11 columns can fail ΔBIC_eff where 5–7 pass with the same held-out gain; the
+and 11 columns can fail ΔBIC_eff where 4–7 pass with the same held-out gain; the
 first hat is left out: the hats sum to 1, which the per-run offsets already hold).
 It is fitted *jointly* with the model's columns, with
 one offset per run, and scored exactly like the effects (:mod:`._score`):
@@ -53,7 +53,7 @@ VARIABLES = ("temperature_c", "delta_t_c", "time_since_power_on_s")
 N_KNOTS = 12
 KNOT_COUNTS = (12, 8, 6, 5)
 """The knot counts a spline in one variable may have; the search takes the one with the
-lowest BIC_eff (:func:`spline_knots`)."""
+lowest ΔBIC_eff (:func:`spline_knots`)."""
 SMOOTHING = 0.1
 """λ of the first-difference penalty on the spline, relative to its columns' scale."""
 
@@ -215,7 +215,7 @@ def spline_knots(
     chosen: Sequence[tuple[str, FloatArray]], name: str, current: Evaluation | None = None,
 ) -> FloatArray:
     """The knots of a spline in ``name`` on top of ``effects`` and the splines ``chosen``:
-    the count of :data:`KNOT_COUNTS` whose fit has the lowest BIC_eff (``current``: that
+    the count of :data:`KNOT_COUNTS` with the lowest ΔBIC_eff against it (``current``: that
     model's evaluation, if already made). An in-sample choice; the entry criteria then
     score the spline held out as before."""
     from gyrotherm.analysis._select import _compare
