@@ -112,6 +112,11 @@ SHAPE_EVAL5_SEEDS = (381, 382, 383, 384, 385)
 """Fifth evaluation set for the shapes, fixed (the commit adding this line, with
 SHAPE_DEV2_SEEDS) before any round-5 change and before any result on it; run once, the
 shape cases and the generator's own hysteresis, wide hysteresis and thermal lag."""
+SHAPE_EVAL6_SEEDS = (401, 402, 403, 404, 405)
+"""Sixth evaluation set for the shapes, fixed (the commit adding this line, with
+NULL_CONFIRM4_SEEDS) before the change it will score (a drift must show in the runs' settled
+holds) and before any result on it; run once, the shape cases and the generator's own
+hysteresis, wide hysteresis and thermal lag."""
 NULL_EVAL_SEEDS = tuple(range(5001, 5801))
 """Null-only evaluation (issue 19 item 1, "nulls at scale"): 800 seeds, fixed (the commit
 adding this line) before any result on them was seen; never used while developing; run
@@ -133,7 +138,11 @@ NULL_CONFIRM3_SEEDS = tuple(range(12001, 12601))
 """Fresh nulls for round 5's changes, fixed (the commit adding this line) before any
 round-5 change and before any result on them; run once. Seed j at CONDITIONS[j % 4]: 150
 distinct devices per condition."""
-NULL_SETS = (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS, NULL_CONFIRM2_SEEDS, NULL_CONFIRM3_SEEDS)
+NULL_CONFIRM4_SEEDS = tuple(range(14001, 14601))
+"""Fresh nulls for the same change, fixed with SHAPE_EVAL6_SEEDS before it; run once. Seed j at
+CONDITIONS[j % 4]: 150 distinct devices per condition."""
+NULL_SETS = (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS, NULL_CONFIRM2_SEEDS, NULL_CONFIRM3_SEEDS,
+             NULL_CONFIRM4_SEEDS)
 """Null-only sets: one device per diagnosis, conditions in turn."""
 SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "shapes-dev": SHAPE_DEV_SEEDS, "shapes-eval": SHAPE_EVAL_SEEDS,
@@ -141,7 +150,8 @@ SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "shapes-eval4": SHAPE_EVAL4_SEEDS, "shapes-dev2": SHAPE_DEV2_SEEDS,
              "shapes-eval5": SHAPE_EVAL5_SEEDS, "null-eval": NULL_EVAL_SEEDS,
              "null-confirm": NULL_CONFIRM_SEEDS, "null-confirm2": NULL_CONFIRM2_SEEDS,
-             "null-confirm3": NULL_CONFIRM3_SEEDS}
+             "null-confirm3": NULL_CONFIRM3_SEEDS, "shapes-eval6": SHAPE_EVAL6_SEEDS,
+             "null-confirm4": NULL_CONFIRM4_SEEDS}
 DURATION_S = 6000.0
 STEP_AT_C = 30.0
 CHECKED = {
@@ -473,7 +483,7 @@ def sweep(seeds: Sequence[int], *, quick: bool = False, conditions: Sequence[int
     cases = [c for c in CASES if c.name in QUICK_CASES] if quick else list(CASES)
     if set(seeds) & {*SHAPE_DEV_SEEDS, *SHAPE_EVAL_SEEDS, *SHAPE_EVAL2_SEEDS,
                      *SHAPE_EVAL3_SEEDS, *SHAPE_EVAL4_SEEDS, *SHAPE_DEV2_SEEDS,
-                     *SHAPE_EVAL5_SEEDS}:
+                     *SHAPE_EVAL5_SEEDS, *SHAPE_EVAL6_SEEDS}:
         cases = list(SHAPE_CASES)
     if only:
         by_name = {c.name: c for c in (*CASES, *SHAPE_CASES)}  # two_exp_warmup in both

@@ -66,6 +66,14 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
                                           *SHAPE_EVAL4_SEEDS, *sweep.NULL_EVAL_SEEDS,
                                           *sweep.NULL_DEV_SEEDS, *sweep.NULL_CONFIRM_SEEDS,
                                           *sweep.NULL_CONFIRM2_SEEDS}
+    assert sweep.SHAPE_EVAL6_SEEDS == (401, 402, 403, 404, 405)
+    assert sweep.NULL_CONFIRM4_SEEDS == tuple(range(14001, 14601))
+    earlier = {*used, *SHAPE_DEV2_SEEDS, *SHAPE_EVAL_SEEDS, *SHAPE_EVAL2_SEEDS,
+               *SHAPE_EVAL3_SEEDS, *SHAPE_EVAL4_SEEDS, *SHAPE_EVAL5_SEEDS,
+               *sweep.NULL_EVAL_SEEDS, *sweep.NULL_DEV_SEEDS, *sweep.NULL_CONFIRM_SEEDS,
+               *sweep.NULL_CONFIRM2_SEEDS, *sweep.NULL_CONFIRM3_SEEDS}
+    assert not set(sweep.SHAPE_EVAL6_SEEDS) & earlier
+    assert not set(sweep.NULL_CONFIRM4_SEEDS) & {*earlier, *sweep.SHAPE_EVAL6_SEEDS}
     assert sweep.NULL_CONFIRM3_SEEDS == tuple(range(12001, 12601))
     assert not set(sweep.NULL_CONFIRM3_SEEDS) & {
         *used, *SHAPE_DEV2_SEEDS, *SHAPE_EVAL5_SEEDS, *sweep.NULL_EVAL_SEEDS,
