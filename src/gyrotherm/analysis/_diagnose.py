@@ -70,6 +70,7 @@ from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._select import Selection, prune, select
 from gyrotherm.analysis._separable import (
     drop_drift_like_second_warmup,
+    drop_drift_not_in_holds,
     drop_hysteresis_like_gradient,
     drop_inseparable_drift,
 )
@@ -240,6 +241,9 @@ def diagnose(
         selector, final_ev, limit, readouts, margin=margin, seed=seed)
     final_ev, drift_verdict = drop_inseparable_drift(selector, final_ev)
     final_ev, second_verdict, warmup_note = drop_drift_like_second_warmup(selector, final_ev)
+    if second_verdict is None:
+        final_ev, hold_verdict = drop_drift_not_in_holds(selector, final_ev)
+        second_verdict = hold_verdict
     if hyst_verdict is None:
         final_ev, hyst_verdict = drop_hysteresis_like_gradient(selector, final_ev,
                                                                margin=margin)
