@@ -9,6 +9,8 @@ from types import ModuleType
 
 import pytest
 
+from gyrotherm.analysis import SynthConfig
+
 SCRIPTS = Path(__file__).resolve().parents[2] / "scripts"
 
 
@@ -21,6 +23,11 @@ def load_script(name: str) -> ModuleType:
     sys.modules[name] = module
     spec.loader.exec_module(module)
     return module
+
+
+CORNER_CFG = SynthConfig(duration_s=6000.0, rate_hz=10.0, readout_lsb_c=1.0,
+                         readout_period_s=1.3)
+"""The sweep's corner readout (10 Hz, 1 °C held 1.3 s), diagnosed on 3 runs."""
 
 
 @pytest.fixture(scope="session")

@@ -29,6 +29,8 @@ from gyrotherm.analysis.synth._variants import variant_runs
 from gyrotherm.codecs import Run
 from gyrotherm.compensation import Scaling
 
+from .conftest import CORNER_CFG
+
 CFG = SynthConfig(duration_s=6000.0, rate_hz=10.0, readout_lsb_c=0.125, readout_period_s=1.28)
 
 
@@ -100,11 +102,10 @@ def test_holds_by_hand() -> None:
     assert HOLD_MIN_S > 600.0
 
 
-CORNER = SynthConfig(duration_s=6000.0, rate_hz=10.0, readout_lsb_c=1.0, readout_period_s=1.3)
 HALF = SynthConfig(duration_s=6000.0, rate_hz=50.0, readout_lsb_c=0.5, readout_period_s=1.0)
 
 
-@pytest.mark.parametrize(("cfg", "n_runs", "seed"), [(CFG, 4, 1), (HALF, 3, 4), (CORNER, 3, 1)])
+@pytest.mark.parametrize(("cfg", "n_runs", "seed"), [(CFG, 4, 1), (HALF, 3, 4), (CORNER_CFG, 3, 1)])
 def test_a_real_drift_shows_in_the_holds(cfg: SynthConfig, n_runs: int, seed: int) -> None:
     runs, _ = variant_runs(replace(cfg, effects={"drift": {}}), n_runs=n_runs, seed=seed)
     sel = _selector(runs)

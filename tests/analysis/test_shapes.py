@@ -25,6 +25,8 @@ from gyrotherm.analysis.synth._variants import (
     variant_runs,
 )
 
+from .conftest import CORNER_CFG
+
 SHAPE_DEV_SEEDS = (31, 32, 33, 34, 35, 36)
 SHAPE_EVAL_SEEDS = (301, 302, 303, 304, 305)
 """Fixed (the commit adding this line) before any result on them was seen."""
@@ -228,9 +230,7 @@ def test_abs_dt_named_gradient_quadratic_carries_the_shape_note() -> None:
     # round 5 dev seed 43 at the corner (1 °C / 1.3 s, 3 runs): |ΔT| is named gradient²
     # (the nearest catalogued form); the spline in ΔT in its place is better held out, so
     # the finding says the shape differs
-    cfg = SynthConfig(duration_s=6000.0, rate_hz=10.0, readout_lsb_c=1.0,
-                      readout_period_s=1.3)
-    runs, truth = variant_runs(cfg, shapes={"abs_dt": {}}, n_runs=3, seed=43)
+    runs, truth = variant_runs(CORNER_CFG, shapes={"abs_dt": {}}, n_runs=3, seed=43)
     d = diagnose(runs, simulate=False)
     (f,) = d.findings
     assert f.effect == "gradient_quadratic" and f.gain > 1.2

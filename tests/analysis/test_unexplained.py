@@ -25,6 +25,8 @@ from gyrotherm.analysis.synth._variants import variant_runs
 from gyrotherm.codecs import Run
 from gyrotherm.compensation import Scaling
 
+from .conftest import CORNER_CFG
+
 CFG = SynthConfig(duration_s=6000.0, rate_hz=10.0)
 STEP_C = 30.0
 
@@ -124,9 +126,7 @@ def test_the_knot_count_is_chosen_by_bic_and_deployed_as_found() -> None:
     held-out gain well above ×1.10; the search reports it with the knots BIC_eff chose,
     over the whole range (a periodic bias spans it), and the calibration deploys that many
     knots."""
-    cfg = SynthConfig(duration_s=6000.0, rate_hz=10.0, readout_lsb_c=1.0,
-                      readout_period_s=1.3)
-    runs, _ = variant_runs(cfg, shapes={"periodic_t": {}}, n_runs=3, seed=43)
+    runs, _ = variant_runs(CORNER_CFG, shapes={"periodic_t": {}}, n_runs=3, seed=43)
     d = diagnose(runs, simulate=False)
     (u,) = d.unexplained
     assert u.variable == "temperature_c" and u.gain > 1.10

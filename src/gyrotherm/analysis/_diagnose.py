@@ -69,10 +69,8 @@ from gyrotherm.analysis._resolve import (
 from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._select import Selection, prune, select
 from gyrotherm.analysis._separable import (
-    drop_drift_like_second_warmup,
-    drop_drift_not_in_holds,
     drop_hysteresis_like_gradient,
-    drop_inseparable_drift,
+    drop_unsupported_drift,
 )
 from gyrotherm.analysis._shape_check import shape_notes
 from gyrotherm.analysis._to_calibration import EffectsFit, fit_effects
@@ -239,16 +237,11 @@ def diagnose(
         selector, final_ev, limit, readouts, margin=margin, seed=seed)
     final_ev, hyst_verdict = drop_readout_hysteresis(
         selector, final_ev, limit, readouts, margin=margin, seed=seed)
-    final_ev, drift_verdict = drop_inseparable_drift(selector, final_ev)
-    final_ev, second_verdict, warmup_note = drop_drift_like_second_warmup(selector, final_ev)
-    if second_verdict is None:
-        final_ev, hold_verdict = drop_drift_not_in_holds(selector, final_ev)
-        second_verdict = hold_verdict
+    final_ev, drift_verdict, warmup_note = drop_unsupported_drift(selector, final_ev)
     if hyst_verdict is None:
         final_ev, hyst_verdict = drop_hysteresis_like_gradient(selector, final_ev,
                                                                margin=margin)
-    verdicts = tuple(v for v in (lag_verdict, hyst_verdict, drift_verdict, second_verdict)
-                     if v)
+    verdicts = tuple(v for v in (lag_verdict, hyst_verdict, drift_verdict) if v)
     for v in verdicts:
         notes.append(f"{v.effect} not reported as a physical finding ({v.verdict}): {v.reason}")
         say(notes[-1])

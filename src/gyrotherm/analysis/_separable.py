@@ -70,6 +70,11 @@ from gyrotherm.analysis._unexplained import evaluate_with, knots_for
 
 FloatArray = NDArray[np.float64]
 
+def _duration_s(selector: Selector) -> float:
+    """The runs' median length, s."""
+    return float(np.median([p.time_s[-1] - p.time_s[0] for p in selector.runs]))
+
+
 DECAYED_TAUS = 3.0
 """A warm-up has decayed (below e^(−3) ≈ 5 % of its amplitude) after this many τ."""
 MIN_DECAYED_SHARE = 0.5
@@ -87,7 +92,7 @@ def drop_inseparable_drift(
     if not {"drift", "warmup"} <= set(final.effects):
         return final, None
     tau = float(final.effects["warmup"])
-    duration = float(np.median([p.time_s[-1] - p.time_s[0] for p in selector.runs]))
+    duration = _duration_s(selector)
     decayed = max(0.0, duration - DECAYED_TAUS * tau) / duration
     if decayed >= MIN_DECAYED_SHARE:
         return final, None
@@ -119,7 +124,7 @@ def drop_drift_like_second_warmup(
 
     if not {"drift", "warmup"} <= set(final.effects):
         return final, None, None
-    duration = float(np.median([p.time_s[-1] - p.time_s[0] for p in selector.runs]))
+    duration = _duration_s(selector)
     grid = TAU_GRIDS["warmup"][::2]  # both constants on the coarse grid, jointly
     pairs = [(t1, t2) for t1 in (*grid, float(final.effects["warmup"])) for t2 in grid
              if SECOND_TAU_MIN * t1 <= t2 <= duration / DECAYED_TAUS]
@@ -158,6 +163,24 @@ def drop_drift_like_second_warmup(
               "first_tau_s": tau1, "second_tau_s": tau2,
               "ratio": ratio}
     return without, NotResolvable("drift", params, reason, verdict=SECOND_WARMUP_VERDICT), note
+
+
+def drop_unsupported_drift(
+    selector: Selector, final: Evaluation
+) -> tuple[Evaluation, NotResolvable | None, str | None]:
+    """The drift's checks in turn (module docstring): beside a warm-up that has not decayed
+    (:func:`drop_inseparable_drift`), against a second warm-up exponential
+    (:func:`drop_drift_like_second_warmup`), against the settled holds
+    (:func:`drop_drift_not_in_holds`). The first that leaves it out gives the verdict (and,
+    for the second, the warm-up's shape note); ``final``, None, None when it stands."""
+    kept, verdict = drop_inseparable_drift(selector, final)
+    if verdict is not None:
+        return kept, verdict, None
+    kept, verdict, note = drop_drift_like_second_warmup(selector, final)
+    if verdict is not None:
+        return kept, verdict, note
+    kept, verdict = drop_drift_not_in_holds(selector, final)
+    return kept, verdict, None
 
 
 HOLD_RATE_C_PER_S = 0.002
@@ -213,8 +236,9 @@ def drop_drift_not_in_holds(
         return final, None
     x, y = np.concatenate(xs), np.concatenate(ys)
     slope = float(x @ y / (x @ x))
-    tau = integrated_time([yy - slope * xx for xx, yy in zip(xs, ys, strict=True)])
-    e = y - slope * x
+    about = [yy - slope * xx for xx, yy in zip(xs, ys, strict=True)]
+    tau = integrated_time(about)
+    e = np.concatenate(about)
     se = math.sqrt(float(e @ e) / max(len(x) - 1, 1) * tau / float(x @ x))
     fitted = float(selector.model(final).params()["drift"]["slope_dps_per_h"])
     z = slope / se * math.copysign(1.0, fitted) if se > 0 else 0.0
