@@ -117,6 +117,10 @@ SHAPE_EVAL6_SEEDS = (401, 402, 403, 404, 405)
 NULL_CONFIRM4_SEEDS) before the change it will score (a drift must show in the runs' settled
 holds) and before any result on it; run once, the shape cases and the generator's own
 hysteresis, wide hysteresis and thermal lag."""
+SHAPE_EVAL7_SEEDS = (421, 422, 423, 424, 425)
+"""Seventh evaluation set for the shapes, fixed (the commit adding this line, with
+NULL_CONFIRM5_SEEDS) before any round-6 change and before any result on it; run once, the
+shape cases and the generator's own hysteresis, wide hysteresis and thermal lag."""
 NULL_EVAL_SEEDS = tuple(range(5001, 5801))
 """Null-only evaluation (issue 19 item 1, "nulls at scale"): 800 seeds, fixed (the commit
 adding this line) before any result on them was seen; never used while developing; run
@@ -141,8 +145,11 @@ distinct devices per condition."""
 NULL_CONFIRM4_SEEDS = tuple(range(14001, 14601))
 """Fresh nulls for the same change, fixed with SHAPE_EVAL6_SEEDS before it; run once. Seed j at
 CONDITIONS[j % 4]: 150 distinct devices per condition."""
+NULL_CONFIRM5_SEEDS = tuple(range(16001, 16601))
+"""Fresh nulls for round 6, fixed with SHAPE_EVAL7_SEEDS before any round-6 change; run once.
+Seed j at CONDITIONS[j % 4]: 150 distinct devices per condition."""
 NULL_SETS = (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS, NULL_CONFIRM2_SEEDS, NULL_CONFIRM3_SEEDS,
-             NULL_CONFIRM4_SEEDS)
+             NULL_CONFIRM4_SEEDS, NULL_CONFIRM5_SEEDS)
 """Null-only sets: one device per diagnosis, conditions in turn."""
 SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "shapes-dev": SHAPE_DEV_SEEDS, "shapes-eval": SHAPE_EVAL_SEEDS,
@@ -151,7 +158,8 @@ SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "shapes-eval5": SHAPE_EVAL5_SEEDS, "null-eval": NULL_EVAL_SEEDS,
              "null-confirm": NULL_CONFIRM_SEEDS, "null-confirm2": NULL_CONFIRM2_SEEDS,
              "null-confirm3": NULL_CONFIRM3_SEEDS, "shapes-eval6": SHAPE_EVAL6_SEEDS,
-             "null-confirm4": NULL_CONFIRM4_SEEDS}
+             "null-confirm4": NULL_CONFIRM4_SEEDS, "shapes-eval7": SHAPE_EVAL7_SEEDS,
+             "null-confirm5": NULL_CONFIRM5_SEEDS}
 DURATION_S = 6000.0
 STEP_AT_C = 30.0
 CHECKED = {

@@ -76,6 +76,11 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
                *sweep.NULL_CONFIRM2_SEEDS, *sweep.NULL_CONFIRM3_SEEDS}
     assert not set(sweep.SHAPE_EVAL6_SEEDS) & earlier
     assert not set(sweep.NULL_CONFIRM4_SEEDS) & {*earlier, *sweep.SHAPE_EVAL6_SEEDS}
+    assert sweep.SHAPE_EVAL7_SEEDS == (421, 422, 423, 424, 425)
+    assert sweep.NULL_CONFIRM5_SEEDS == tuple(range(16001, 16601))
+    before7 = {*earlier, *sweep.SHAPE_EVAL6_SEEDS, *sweep.NULL_CONFIRM4_SEEDS}
+    assert not set(sweep.SHAPE_EVAL7_SEEDS) & before7
+    assert not set(sweep.NULL_CONFIRM5_SEEDS) & {*before7, *sweep.SHAPE_EVAL7_SEEDS}
     assert sweep.NULL_CONFIRM3_SEEDS == tuple(range(12001, 12601))
     assert not set(sweep.NULL_CONFIRM3_SEEDS) & {
         *used, *SHAPE_DEV2_SEEDS, *SHAPE_EVAL5_SEEDS, *sweep.NULL_EVAL_SEEDS,
