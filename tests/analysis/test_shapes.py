@@ -10,6 +10,7 @@ developing (tests use SHAPE_DEV_SEEDS only)."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from types import ModuleType
 
 import numpy as np
@@ -221,6 +222,21 @@ def test_rate_dependent_hysteresis_is_named_hysteresis() -> None:
     assert abs(f.params["amplitude_dps"] / true - 1.0) < 0.2
 
 
+def test_a_structure_in_time_standing_in_for_a_left_out_hysteresis_is_not_reported() -> None:
+    # round 5 dev seed 41 at the corner: the rate-dependent hysteresis is declared not
+    # resolvable, and round 5 then named a structure in time over [1515, 5970] s (no time
+    # effect is injected). With the left-out hysteresis in the replays' null, the spline in
+    # time buys no more there than on the runs
+    runs, _ = variant_runs(CORNER_CFG, shapes={"rate_hysteresis": {}}, n_runs=3, seed=41)
+    d = diagnose(runs, simulate=False)
+    assert d.unexplained == ()
+    verdicts = {v.effect: v for v in d.not_resolvable}
+    assert "hysteresis" in verdicts
+    v = verdicts["unexplained:time_since_power_on_s"]
+    assert "hysteresis (left out as not resolvable) included" in v.reason
+    assert v.params["gain"] < 1.10 * v.params["null_gain"]
+
+
 def test_abs_dt_is_unexplained_in_delta_t_and_makes_gradient_quadratic_redundant() -> None:
     # dev seed 34: until round 5 |ΔT| was named gradient² with the shape note; with the
     # spline's knot count chosen by BIC_eff a 5–8-knot spline in ΔT passes in its place
@@ -253,6 +269,23 @@ def test_catalogued_gradient_quadratic_carries_no_shape_note() -> None:
     (f,) = diagnose(runs, simulate=False).findings
     assert f.effect == "gradient_quadratic" and f.shape == ""
     assert "shape_differs" not in f.to_dict()
+
+
+def test_an_exact_gradient_quadratic_read_at_the_corner_gets_no_shape_note() -> None:
+    # dev seed 3 at the corner: the catalogue's own c·ΔT² is injected, yet a spline in
+    # the estimated ΔT in its place is ×1.037 better held out (errors in the variable
+    # bend ΔT²); readout replays of ΔT² give ×1.045, so the shape is not resolvable
+    runs, _ = variant_runs(replace(CORNER_CFG, effects={"gradient_quadratic": {}}),
+                           n_runs=3, seed=3)
+    d = diagnose(runs, simulate=False)
+    (f,) = d.findings
+    assert f.effect == "gradient_quadratic" and f.shape == ""
+    (v,) = [v for v in d.not_resolvable if v.effect == "shape:gradient_quadratic"]
+    assert "readout replays of the runs with c·ΔT² exactly" in v.reason
+    replayed = float(v.reason.split("exactly it is ×")[1].split(":")[0])
+    real = float(v.reason.split("better held out (×")[1].split(",")[0])
+    assert 1.03 <= real < 1.03 * replayed  # passed the plain check, not the replays'
+    assert any("its shape is not resolvable at this readout" in n for n in d.notes)
 
 
 def test_the_shape_note_describes_a_curve_in_delta_t_by_hand() -> None:

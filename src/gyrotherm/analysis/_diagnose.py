@@ -49,6 +49,7 @@ from gyrotherm.analysis._compare import (
     compare_simulation,
 )
 from gyrotherm.analysis._effects import EFFECTS, ExtendedModel
+from gyrotherm.analysis._null_replay import replay_shape
 from gyrotherm.analysis._prep import (
     DEFAULT_TAU_S,
     Prepared,
@@ -60,6 +61,7 @@ from gyrotherm.analysis._prep import (
 )
 from gyrotherm.analysis._resolution import Resolution, placement
 from gyrotherm.analysis._resolve import (
+    NULL_REPLAYS,
     NotResolvable,
     drop_readout_hysteresis,
     drop_unresolved_lag,
@@ -233,6 +235,7 @@ def diagnose(
     selection = select(selector, margin=margin, progress=say)
     base_ev, final_ev = selection.baseline, selection.final
     limit = lag_limit(readouts, prepared, features=features)
+    selected = dict(final_ev.effects)
     final_ev, lag_verdict = drop_unresolved_lag(
         selector, final_ev, limit, readouts, margin=margin, seed=seed)
     final_ev, hyst_verdict = drop_readout_hysteresis(
@@ -256,11 +259,13 @@ def diagnose(
     resolution = Resolution(lsb_c=float(np.median([r.lsb_c for r in readouts])), tau_s=tau_s,
                             hold_s=float(np.median([r.period_s for r in readouts])))
     variables = list(VARIABLES)
+    # what the verdicts left out stays in the null the structures must beat
+    unresolved = {v.effect: selected[v.effect] for v in verdicts if v.effect in selected}
     while True:  # a structure the readout alone gives: a verdict, and search without it
         search = search_unexplained(selector, final_ev, margin=margin, variables=variables)
         too_fine = [v for v in (readout_structure(  # more than the readout alone gives?
             selector, search.catalogued.effects, u, limit, readouts, margin=margin,
-            seed=seed) for u in search.unexplained) if v]
+            seed=seed, unresolved=unresolved) for u in search.unexplained) if v]
         if not too_fine:
             break
         for v in too_fine:
@@ -296,8 +301,18 @@ def diagnose(
             heldout_rms_dps=alone.heldout_rms_dps,
             gain=base_ev.heldout_rms_dps / alone.heldout_rms_dps,
         ))
-    shapes = shape_notes(selector, final_ev.effects,
-                         [(u.variable, np.array(u.knots)) for u in unexplained])
+    def shape_replay(name: str, variable: str, n_knots: int) -> tuple[float, ...]:
+        return replay_shape(selector, dict(final_ev.effects), readouts, limit.lsb_crossing_s,
+                            name, variable, n_knots, seed=seed, replays=NULL_REPLAYS)
+
+    checked = shape_notes(selector, final_ev.effects,
+                          [(u.variable, np.array(u.knots)) for u in unexplained],
+                          replay=shape_replay)
+    shapes = dict(checked.differs)
+    for name, text in checked.unresolved.items():
+        verdicts = (*verdicts, NotResolvable(f"shape:{name}", {}, text))
+        notes.append(f"{name}: its shape is not resolvable at this readout: {text}")
+        say(notes[-1])
     if warmup_note and "warmup" in final_ev.effects:
         shapes["warmup"] = "; ".join(t for t in (shapes.get("warmup"), warmup_note) if t)
     findings = [replace(f, shape=shapes[f.effect]) if f.effect in shapes else f

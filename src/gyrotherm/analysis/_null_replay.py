@@ -32,7 +32,7 @@ lag's τ are what the readout alone produces (:func:`replay_lag`).
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -185,16 +185,26 @@ def replay_lag(
 def replay_spline(
     selector: Selector, effects: dict[str, float], readouts: Sequence[Readout],
     crossing_s: float, variable: str, *, seed: int = 0, replays: int = 2,
+    unresolved: Mapping[str, float] | None = None,
 ) -> tuple[tuple[float, ...], str]:
     """Null held-out gains of an unexplained spline in ``variable`` (:mod:`._unexplained`)
     on readout replays of the model ``effects`` without it: on each replay the best
     ratio of the model's held-out RMS to that with the spline added, or in place of one
-    of the effects (as the search tries it); and how the step-free temperature was made."""
+    of the effects (as the search tries it); and how the step-free temperature was made.
+
+    ``unresolved``: effects the diagnosis left out as not resolvable (name → nonlinear
+    parameter). They are in the replays' generating model, at their size fitted on the
+    step-free temperature, but not in the model fitted to the replays, as on the runs:
+    the null is then what the readout gives plus what the data could not resolve, so a
+    spline that only stands in for a left-out hysteresis, lag or drift is not reported
+    in its place."""
     from gyrotherm.analysis._unexplained import evaluate_with, spline_knots
 
     _, how = step_free(selector.runs, crossing_s)
     gains = []
-    for null_sel in _null_selectors(selector, dict(effects), readouts, crossing_s, seed=seed,
+    generating = {**effects, **{k: v for k, v in (unresolved or {}).items()
+                                if k not in effects}}
+    for null_sel in _null_selectors(selector, generating, readouts, crossing_s, seed=seed,
                                     replays=replays):
         before = evaluate_with(null_sel, effects, [])
         knots = spline_knots(null_sel, effects, [], variable, before)  # as the search does
@@ -202,3 +212,28 @@ def replay_spline(
                                 [(variable, knots)]) for name in ("", *effects)]
         gains.append(before.heldout_rms_dps / min(t.heldout_rms_dps for t in trials))
     return tuple(gains), how
+
+
+def replay_shape(
+    selector: Selector, effects: dict[str, float], readouts: Sequence[Readout],
+    crossing_s: float, name: str, variable: str, n_knots: int, *, seed: int = 0,
+    replays: int = 2,
+) -> tuple[float, ...]:
+    """Null ratios of the shape check (:mod:`._shape_check`) for the catalogued ``name``:
+    on readout replays of the model ``effects`` — ``name`` in its catalogued form, so
+    the null is "the shape is the catalogue's" — the held-out RMS with ``name`` over
+    that with a linear spline in ``variable`` (``n_knots`` knots over the replay's range)
+    in its place. Read through a coarse readout, even an exact c·ΔT² or s·t is fitted
+    better by a spline in the estimated variable (errors in the variable bend it), so
+    the runs' ratio must beat these."""
+    from gyrotherm.analysis._unexplained import evaluate_with, knots_for
+
+    rest = {k: v for k, v in effects.items() if k != name}
+    ratios = []
+    for null_sel in _null_selectors(selector, dict(effects), readouts, crossing_s, seed=seed,
+                                    replays=replays):
+        base = evaluate_with(null_sel, effects, [])
+        alt = evaluate_with(null_sel, rest,
+                            [(variable, knots_for(null_sel.runs, variable, n_knots))])
+        ratios.append(base.heldout_rms_dps / alt.heldout_rms_dps)
+    return tuple(ratios)

@@ -204,22 +204,29 @@ def drop_readout_hysteresis(
 def readout_structure(
     selector: Selector, effects: Mapping[str, float], u: Unexplained, limit: LagLimit,
     readouts: Sequence[Readout], *, margin: float = 0.10, seed: int = 0,
+    unresolved: Mapping[str, float] | None = None,
 ) -> NotResolvable | None:
     """The verdict for the unexplained structure ``u`` found on top of the model
     ``effects`` when its held-out gain is not ``margin`` above what :data:`NULL_REPLAYS`
     readout replays of that model, with no structure, give a spline in the same
     variable (:func:`~._null_replay.replay_spline`): at a coarse readout the T and ΔT
     terms misfit the staircase, and what they leave follows the profile, which every
-    run repeats at the same times since power-on; else None."""
+    run repeats at the same times since power-on; else None. ``unresolved``: the effects
+    left out as not resolvable, in the replays' generating model
+    (:func:`~._null_replay.replay_spline`)."""
     gains, how = replay_spline(selector, dict(effects), readouts, limit.lsb_crossing_s,
-                               u.variable, seed=seed, replays=NULL_REPLAYS)
+                               u.variable, seed=seed, replays=NULL_REPLAYS,
+                               unresolved=unresolved)
     null = max(gains)
     if u.gain >= (1.0 + margin) * null:
         return None
     reason = (f"a structure in {u.variable} over [{u.where[0]:.3g}, {u.where[1]:.3g}], "
               f"held-out gain ×{u.gain:.3f}, but replays of the runs' readout (hold "
               f"{limit.hold_s:.2f} s, LSB crossing {limit.lsb_crossing_s:.1f} s on the ramps; "
-              f"from the {how}) on the model without it already give a spline in "
+              f"from the {how}) on the model without it"
+              + (f", {' and '.join(sorted(unresolved))} (left out as not resolvable) "
+                 "included," if unresolved else "")
+              + f" already give a spline in "
               f"{u.variable} ×{null:.3f}: not ×{1.0 + margin:.2f} above what the readout "
               "alone produces")
     return NotResolvable(f"unexplained:{u.variable}",
