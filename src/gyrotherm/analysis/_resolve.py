@@ -40,7 +40,9 @@ readout the T and ΔT terms misfit the staircase, and what they leave follows th
 temperature profile, which every run repeats at about the same times since
 power-on, so a spline in time (or T, ΔT) passes leave-one-run-out. The
 structure must beat, by the margin, the largest gain a spline in its variable
-buys on replays of the model without it.
+buys on replays of the model without it; the effects already left out as not
+resolvable are in the replays' generating model (not in the fitted one), so a
+spline that only stands in for one of them is not a finding.
 
 An unresolved lag, hysteresis or structure is left out of the model and
 reported as a :class:`NotResolvable` verdict ("not resolvable at this readout")
