@@ -121,6 +121,11 @@ SHAPE_EVAL7_SEEDS = (421, 422, 423, 424, 425)
 """Seventh evaluation set for the shapes, fixed (the commit adding this line, with
 NULL_CONFIRM5_SEEDS) before any round-6 change and before any result on it; run once, the
 shape cases and the generator's own hysteresis, wide hysteresis and thermal lag."""
+SHAPE_EVAL8_SEEDS = (441, 442, 443, 444, 445)
+"""Eighth evaluation set for the shapes, fixed (the commit adding this line, with
+NULL_CONFIRM6_SEEDS) after the seventh set was scored and before the change it will score
+(a warm-up beside a hysteresis that the hysteresis' initial state matches is not a finding)
+and before any result on it; run once."""
 NULL_EVAL_SEEDS = tuple(range(5001, 5801))
 """Null-only evaluation (issue 19 item 1, "nulls at scale"): 800 seeds, fixed (the commit
 adding this line) before any result on them was seen; never used while developing; run
@@ -148,8 +153,11 @@ CONDITIONS[j % 4]: 150 distinct devices per condition."""
 NULL_CONFIRM5_SEEDS = tuple(range(16001, 16601))
 """Fresh nulls for round 6, fixed with SHAPE_EVAL7_SEEDS before any round-6 change; run once.
 Seed j at CONDITIONS[j % 4]: 150 distinct devices per condition."""
+NULL_CONFIRM6_SEEDS = tuple(range(18001, 18601))
+"""Fresh nulls for the same change, fixed with SHAPE_EVAL8_SEEDS before it; run once. Seed j
+at CONDITIONS[j % 4]: 150 distinct devices per condition."""
 NULL_SETS = (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS, NULL_CONFIRM2_SEEDS, NULL_CONFIRM3_SEEDS,
-             NULL_CONFIRM4_SEEDS, NULL_CONFIRM5_SEEDS)
+             NULL_CONFIRM4_SEEDS, NULL_CONFIRM5_SEEDS, NULL_CONFIRM6_SEEDS)
 """Null-only sets: one device per diagnosis, conditions in turn."""
 SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "shapes-dev": SHAPE_DEV_SEEDS, "shapes-eval": SHAPE_EVAL_SEEDS,
@@ -159,7 +167,8 @@ SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "null-confirm": NULL_CONFIRM_SEEDS, "null-confirm2": NULL_CONFIRM2_SEEDS,
              "null-confirm3": NULL_CONFIRM3_SEEDS, "shapes-eval6": SHAPE_EVAL6_SEEDS,
              "null-confirm4": NULL_CONFIRM4_SEEDS, "shapes-eval7": SHAPE_EVAL7_SEEDS,
-             "null-confirm5": NULL_CONFIRM5_SEEDS}
+             "null-confirm5": NULL_CONFIRM5_SEEDS, "shapes-eval8": SHAPE_EVAL8_SEEDS,
+             "null-confirm6": NULL_CONFIRM6_SEEDS}
 DURATION_S = 6000.0
 STEP_AT_C = 30.0
 CHECKED = {
@@ -515,7 +524,8 @@ def sweep(seeds: Sequence[int], *, quick: bool = False, conditions: Sequence[int
     cases = [c for c in CASES if c.name in QUICK_CASES] if quick else list(CASES)
     if set(seeds) & {*SHAPE_DEV_SEEDS, *SHAPE_EVAL_SEEDS, *SHAPE_EVAL2_SEEDS,
                      *SHAPE_EVAL3_SEEDS, *SHAPE_EVAL4_SEEDS, *SHAPE_DEV2_SEEDS,
-                     *SHAPE_EVAL5_SEEDS, *SHAPE_EVAL6_SEEDS, *SHAPE_EVAL7_SEEDS}:
+                     *SHAPE_EVAL5_SEEDS, *SHAPE_EVAL6_SEEDS, *SHAPE_EVAL7_SEEDS,
+                     *SHAPE_EVAL8_SEEDS}:
         cases = list(SHAPE_CASES)
     if only:
         by_name = {c.name: c for c in (*CASES, *SHAPE_CASES)}  # two_exp_warmup in both

@@ -82,6 +82,11 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
     before7 = {*earlier, *sweep.SHAPE_EVAL6_SEEDS, *sweep.NULL_CONFIRM4_SEEDS}
     assert not set(sweep.SHAPE_EVAL7_SEEDS) & before7
     assert not set(sweep.NULL_CONFIRM5_SEEDS) & {*before7, *sweep.SHAPE_EVAL7_SEEDS}
+    assert sweep.SHAPE_EVAL8_SEEDS == (441, 442, 443, 444, 445)
+    assert sweep.NULL_CONFIRM6_SEEDS == tuple(range(18001, 18601))
+    before8 = {*before7, *sweep.SHAPE_EVAL7_SEEDS, *sweep.NULL_CONFIRM5_SEEDS}
+    assert not set(sweep.SHAPE_EVAL8_SEEDS) & before8
+    assert not set(sweep.NULL_CONFIRM6_SEEDS) & {*before8, *sweep.SHAPE_EVAL8_SEEDS}
     assert sweep.NULL_CONFIRM3_SEEDS == tuple(range(12001, 12601))
     assert not set(sweep.NULL_CONFIRM3_SEEDS) & {
         *used, *SHAPE_DEV2_SEEDS, *SHAPE_EVAL5_SEEDS, *sweep.NULL_EVAL_SEEDS,
