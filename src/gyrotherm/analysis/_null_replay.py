@@ -216,8 +216,9 @@ def replay_spline(
 
 def replay_shape(
     selector: Selector, effects: dict[str, float], readouts: Sequence[Readout],
-    crossing_s: float, name: str, variable: str, n_knots: int, *, seed: int = 0,
-    replays: int = 2,
+    crossing_s: float, name: str, variable: str, n_knots: int, *,
+    splines: Sequence[tuple[str, int]] = (), unresolved: Mapping[str, float] | None = None,
+    seed: int = 0, replays: int = 2,
 ) -> tuple[float, ...]:
     """Null ratios of the shape check (:mod:`._shape_check`) for the catalogued ``name``:
     on readout replays of the model ``effects`` — ``name`` in its catalogued form, so
@@ -225,15 +226,25 @@ def replay_shape(
     that with a linear spline in ``variable`` (``n_knots`` knots over the replay's range)
     in its place. Read through a coarse readout, even an exact c·ΔT² or s·t is fitted
     better by a spline in the estimated variable (errors in the variable bend it), so
-    the runs' ratio must beat these."""
+    the runs' ratio must beat these.
+
+    As on the runs: the effects' nonlinear parameters are refitted on each replay, the
+    unexplained ``splines`` already reported (variable, knot count) are fitted in both
+    models, and the effects left out as not resolvable (``unresolved``) are in the
+    replays' generating model only (:func:`replay_spline`)."""
+    from gyrotherm.analysis._select import _refine_all
     from gyrotherm.analysis._unexplained import evaluate_with, knots_for
 
-    rest = {k: v for k, v in effects.items() if k != name}
+    generating = {**effects, **{k: v for k, v in (unresolved or {}).items()
+                                if k not in effects}}
     ratios = []
-    for null_sel in _null_selectors(selector, dict(effects), readouts, crossing_s, seed=seed,
+    for null_sel in _null_selectors(selector, generating, readouts, crossing_s, seed=seed,
                                     replays=replays):
-        base = evaluate_with(null_sel, effects, [])
+        fitted = dict(_refine_all(null_sel, null_sel.evaluate(dict(effects))).effects)
+        rest = {k: v for k, v in fitted.items() if k != name}
+        other = [(w, knots_for(null_sel.runs, w, k)) for w, k in splines]
+        base = evaluate_with(null_sel, fitted, other)
         alt = evaluate_with(null_sel, rest,
-                            [(variable, knots_for(null_sel.runs, variable, n_knots))])
+                            [*other, (variable, knots_for(null_sel.runs, variable, n_knots))])
         ratios.append(base.heldout_rms_dps / alt.heldout_rms_dps)
     return tuple(ratios)

@@ -226,9 +226,9 @@ def readout_structure(
               f"held-out gain ×{u.gain:.3f}, but replays of the runs' readout (hold "
               f"{limit.hold_s:.2f} s, LSB crossing {limit.lsb_crossing_s:.1f} s on the ramps; "
               f"from the {how}) on the model without it"
-              + (f", {' and '.join(sorted(unresolved))} (left out as not resolvable) "
+              + (f", {' and '.join(sorted(unresolved))} (left out by a verdict above) "
                  "included," if unresolved else "")
-              + f" already give a spline in "
+              + " already give a spline in "
               f"{u.variable} ×{null:.3f}: not ×{1.0 + margin:.2f} above what the readout "
               "alone produces")
     return NotResolvable(f"unexplained:{u.variable}",

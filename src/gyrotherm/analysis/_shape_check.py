@@ -114,8 +114,11 @@ class ShapeNotes:
     """Effect → note that the shape differs; effect → why its shape is not resolvable
     at this readout (the spline's advantage is no more than readout replays give)."""
 
-    differs: dict[str, str] = field(default_factory=dict)
-    unresolved: dict[str, str] = field(default_factory=dict)
+    differs: Mapping[str, str] = field(default_factory=dict)
+    unresolved: Mapping[str, str] = field(default_factory=dict)
+    ratios: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    """Per unresolved effect: ``ratio`` (the runs'), ``null_ratio`` (the replays' largest),
+    ``improved_runs``."""
 
 
 Replay = Callable[[str, str, int], Sequence[float]]
@@ -136,6 +139,7 @@ def shape_notes(
     base: Evaluation | None = None
     notes: dict[str, str] = {}
     unresolved: dict[str, str] = {}
+    ratios: dict[str, dict[str, float]] = {}
     for name in effects:
         v = SHAPE_VARIABLE.get(name)
         if v is None:
@@ -160,6 +164,8 @@ def shape_notes(
                     f"but on readout replays of the runs with {FORMS[name]} exactly it is "
                     f"×{max(nulls):.3f}: not ×{1.0 + SHAPE_MARGIN:.2f} above what the "
                     f"readout does to {FORMS[name]}")
+                ratios[name] = {"ratio": ratio, "null_ratio": max(nulls),
+                                "improved_runs": float(improved)}
                 continue
             text = (f"the shape differs: a linear spline in {v} in place of {FORMS[name]} is "
                     f"better held out (RMS {base.heldout_rms_dps:.5f} → "
@@ -172,4 +178,4 @@ def shape_notes(
             text += "; the structure is " + _gradient_shape(
                 knots, two_stage(selector.runs, resid, v, knots))
         notes[name] = text
-    return ShapeNotes(notes, unresolved)
+    return ShapeNotes(notes, unresolved, ratios)
