@@ -19,7 +19,9 @@
    explains (:mod:`._unexplained`: a spline in T, ΔT or time since power-on,
    reported as an ``unexplained`` finding, not part of the extended model; one
    no better than readout replays without it give is a verdict, :mod:`._resolve`, and
-   one sharper than the readout can place gets a note saying so, :mod:`._resolution`); refit the
+   one sharper than the readout can place gets a note saying so, :mod:`._resolution`; a
+   catalogued finding whose "shape differs" note the readout alone would produce keeps its
+   name without the note and gets a ``shape:<effect>`` verdict, :mod:`._shape_check`); refit the
    extended model, replay it through the extended simulator, and report
    (schema ``gyrotherm.diagnosis/1``).
 4. Optionally (:func:`export_calibration`) write the chosen extended model as a
@@ -127,7 +129,9 @@ class Diagnosis:
     listed after the findings in ``to_dict``, not part of ``extended``."""
     not_resolvable: tuple[NotResolvable, ...] = field(default_factory=tuple)
     """Effects the selection chose that the data cannot support at this readout
-    (:mod:`._resolve`): left out of ``extended``, named with the reason instead."""
+    (:mod:`._resolve`): left out of ``extended``, named with the reason instead. A
+    ``shape:<effect>`` entry is different: the effect stays a finding (in ``extended``);
+    only the note that its shape differs is not supported (:mod:`._shape_check`)."""
 
     @property
     def gain(self) -> float:

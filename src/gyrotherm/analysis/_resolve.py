@@ -112,7 +112,9 @@ def lag_limit(
 
 @dataclass(frozen=True)
 class NotResolvable:
-    """An effect the selection chose that the data cannot support at this readout."""
+    """An effect the selection chose that the data cannot support at this readout (or,
+    for ``effect = "shape:<name>"``, a finding whose different shape it cannot support:
+    the finding stays, without the note; :mod:`._shape_check`)."""
 
     effect: str
     params: Mapping[str, float]
