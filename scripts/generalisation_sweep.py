@@ -136,6 +136,10 @@ NULL_DEV_SEEDS = tuple(range(6001, 6101))
 """Development seeds for nulls at scale: nothing injected at the corner (CONDITIONS[3]) only,
 diagnosed after the null-eval run at 06c0bb1 named structures at the corner; the readout
 replay of an unexplained structure and the pruning beside a verdict were developed on these."""
+NULL_DEV2_SEEDS = tuple(range(7001, 7301))
+"""Development nulls at 50 Hz, 0.5 °C / 1.0 s (CONDITIONS[2]) only, the condition all six
+confirmation false alarms up to round 6 came from; diagnosed (round 6, after null-confirm5
+was scored) to see which guard lets them through. Development only."""
 NULL_CONFIRM_SEEDS = tuple(range(8001, 8601))
 """Fresh null-only evaluation for that change, fixed (the commit adding this line) before
 any result on them was seen; run once. Seed j at CONDITIONS[j % 4]: 150 distinct devices

@@ -87,6 +87,9 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
     before8 = {*before7, *sweep.SHAPE_EVAL7_SEEDS, *sweep.NULL_CONFIRM5_SEEDS}
     assert not set(sweep.SHAPE_EVAL8_SEEDS) & before8
     assert not set(sweep.NULL_CONFIRM6_SEEDS) & {*before8, *sweep.SHAPE_EVAL8_SEEDS}
+    # the 0.5 degC development nulls overlap no evaluation or confirmation set
+    assert not set(sweep.NULL_DEV2_SEEDS) & {*before8, *sweep.SHAPE_EVAL8_SEEDS,
+                                             *sweep.NULL_CONFIRM6_SEEDS}
     assert sweep.NULL_CONFIRM3_SEEDS == tuple(range(12001, 12601))
     assert not set(sweep.NULL_CONFIRM3_SEEDS) & {
         *used, *SHAPE_DEV2_SEEDS, *SHAPE_EVAL5_SEEDS, *sweep.NULL_EVAL_SEEDS,
