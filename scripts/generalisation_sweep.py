@@ -123,10 +123,10 @@ NULL_CONFIRM5_SEEDS) before any round-6 change and before any result on it; run 
 shape cases and the generator's own hysteresis, wide hysteresis and thermal lag."""
 SHAPE_EVAL8_SEEDS = (441, 442, 443, 444, 445)
 """Eighth evaluation set for the shapes, fixed (the commit adding this line, with
-NULL_CONFIRM6_SEEDS) after the seventh set was scored, before a change aimed at a warm-up
-named beside a rate-dependent hysteresis, and before any result on it. Development dropped
-that change (docs/findings.md §6, round 6), so no result on it exists yet: it is kept, unused,
-for the next change; run once."""
+NULL_CONFIRM6_SEEDS) after the seventh set was scored, before the change it scores (a warm-up
+beside a hysteresis that the hysteresis' first branch matches is a verdict; a first version,
+the hysteresis' initial state, was dropped on development) and before any result on it; run
+once."""
 NULL_EVAL_SEEDS = tuple(range(5001, 5801))
 """Null-only evaluation (issue 19 item 1, "nulls at scale"): 800 seeds, fixed (the commit
 adding this line) before any result on them was seen; never used while developing; run

@@ -51,6 +51,7 @@ from gyrotherm.analysis._compare import (
     compare_simulation,
 )
 from gyrotherm.analysis._effects import EFFECTS, ExtendedModel
+from gyrotherm.analysis._first_branch import drop_warmup_like_first_branch
 from gyrotherm.analysis._null_replay import replay_shape
 from gyrotherm.analysis._prep import (
     DEFAULT_TAU_S,
@@ -248,7 +249,9 @@ def diagnose(
     if hyst_verdict is None:
         final_ev, hyst_verdict = drop_hysteresis_like_gradient(selector, final_ev,
                                                                margin=margin)
-    verdicts = tuple(v for v in (lag_verdict, hyst_verdict, drift_verdict) if v)
+    final_ev, branch_verdict = drop_warmup_like_first_branch(selector, final_ev)
+    verdicts = tuple(v for v in (lag_verdict, hyst_verdict, drift_verdict, branch_verdict)
+                     if v)
     for v in verdicts:
         notes.append(f"{v.effect} not reported as a physical finding ({v.verdict}): {v.reason}")
         say(notes[-1])
