@@ -121,8 +121,10 @@ class NotResolvable:
     reason: str
     verdict: str = VERDICT
     """``"not resolvable at this readout"``, ``"not resolvable in these runs"`` where the
-    runs' length, not the readout, is the limit, or ``"a warm-up's second time constant"``
-    for a drift a second warm-up exponential matches (both :mod:`._separable`)."""
+    runs' length, not the readout, is the limit, ``"a warm-up's second time constant"``
+    for a drift a second warm-up exponential matches (both :mod:`._separable`), or
+    ``"the hysteresis' first branch"`` for a warm-up that branch matches
+    (:mod:`._first_branch`)."""
 
     def to_dict(self) -> dict[str, Any]:
         return {"effect": self.effect, "verdict": self.verdict, "params": dict(self.params),
