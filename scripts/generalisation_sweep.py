@@ -239,6 +239,8 @@ SHAPE_CASES = (
 (``--seeds shapes-dev|shapes-eval|shapes-eval2``), with nothing injected on the same devices
 as a control. The two-exponential warm-up (the fifth shape item 2 names, in CASES since
 round 1) was added here with SHAPE_EVAL2_SEEDS, so the first shapes run (301–305) lacks it."""
+CASES_BY_NAME = {c.name: c for c in (*CASES, *SHAPE_CASES)}
+"""Every case by name; two_exp_warmup is in both lists, the same case."""
 CONDITIONS = (
     Condition("10 Hz, 0.125 °C / 1.28 s, 4 runs", 10.0, 0.125, 1.28, 4),
     Condition("200 Hz, 0.0625 °C / 0.1 s, 4 runs", 200.0, 0.0625, 0.1, 4),
@@ -512,8 +514,7 @@ def _totals(rows: Sequence[dict[str, Any]]) -> list[str]:
 def _shaped(row: dict[str, Any]) -> bool:
     """Whether the row's case injects an off-catalogue shape (else the catalogue's own
     formulas, or nothing)."""
-    by_name = {c.name: c for c in CASES} | {c.name: c for c in SHAPE_CASES}
-    return bool(by_name[row["case"]].shapes)
+    return bool(CASES_BY_NAME[row["case"]].shapes)
 
 
 def commit() -> str:
@@ -533,8 +534,7 @@ def sweep(seeds: Sequence[int], *, quick: bool = False, conditions: Sequence[int
                      *SHAPE_EVAL8_SEEDS}:
         cases = list(SHAPE_CASES)
     if only:
-        by_name = {c.name: c for c in (*CASES, *SHAPE_CASES)}  # two_exp_warmup in both
-        cases = [c for n, c in by_name.items() if n in only]
+        cases = [c for n, c in CASES_BY_NAME.items() if n in only]
     conds = CONDITIONS[::3] if quick else CONDITIONS
     if conditions is not None:
         conds = tuple(CONDITIONS[i] for i in conditions)

@@ -318,12 +318,12 @@ def diagnose(
                           [(u.variable, np.array(u.knots)) for u in unexplained],
                           replay=shape_replay)
     shapes = dict(checked.differs)
-    for name, text in checked.unresolved.items():
+    for name, verdict in checked.unresolved.items():
         if name == "warmup" and warmup_note:  # the second warm-up's own held-out test
             continue                          # says how the shape differs
         # the effect stays in the model; only its shape is not supported
-        verdicts = (*verdicts, NotResolvable(f"shape:{name}", checked.ratios[name], text))
-        notes.append(f"{name}: its shape is not resolvable at this readout: {text}")
+        verdicts = (*verdicts, verdict)
+        notes.append(f"{name}: its shape is not resolvable at this readout: {verdict.reason}")
         say(notes[-1])
     if warmup_note and "warmup" in final_ev.effects:
         shapes["warmup"] = "; ".join(t for t in (shapes.get("warmup"), warmup_note) if t)

@@ -54,7 +54,7 @@ def first_branch(temperature_c: FloatArray, width_c: float) -> FloatArray:
     out[:k] = np.clip((t[:k] - t[0]) / width_c, -1.0, 1.0)
     if k < len(t):
         travel = np.cumsum(np.abs(np.diff(t[k:], prepend=t[k])))
-        out[k:] = (out[k - 1] if k > 0 else 0.0) * np.exp(-travel / width_c)
+        out[k:] = out[k - 1] * np.exp(-travel / width_c)  # k ≥ 1: no turn at sample 0
     return out
 
 

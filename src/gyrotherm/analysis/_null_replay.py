@@ -126,11 +126,14 @@ def replay_readout(readouts: Sequence[Readout]) -> Readout:
 
 def _null_selectors(
     selector: Selector, rest: dict[str, float], readouts: Sequence[Readout], crossing_s: float,
-    *, seed: int, replays: int,
+    *, seed: int, replays: int, unresolved: Mapping[str, float] | None = None,
 ) -> Iterator[Selector]:
     """``replays`` readout replays of the runs with the model ``rest`` (module docstring,
-    steps 1–3), each as a selector on the replayed runs."""
+    steps 1–3), each as a selector on the replayed runs; ``unresolved`` effects (name →
+    nonlinear parameter) are added to the generating model where ``rest`` lacks them."""
     from gyrotherm.analysis._select import _refine_all
+
+    rest = {**(unresolved or {}), **rest}
 
     tau = float(np.median([np.median(p.delta_t_c[p.rate_c_per_s != 0]
                                      / p.rate_c_per_s[p.rate_c_per_s != 0])
@@ -202,10 +205,8 @@ def replay_spline(
 
     _, how = step_free(selector.runs, crossing_s)
     gains = []
-    generating = {**effects, **{k: v for k, v in (unresolved or {}).items()
-                                if k not in effects}}
-    for null_sel in _null_selectors(selector, generating, readouts, crossing_s, seed=seed,
-                                    replays=replays):
+    for null_sel in _null_selectors(selector, dict(effects), readouts, crossing_s, seed=seed,
+                                    replays=replays, unresolved=unresolved):
         before = evaluate_with(null_sel, effects, [])
         knots = spline_knots(null_sel, effects, [], variable, before)  # as the search does
         trials = [evaluate_with(null_sel, {k: v for k, v in effects.items() if k != name},
@@ -235,11 +236,9 @@ def replay_shape(
     from gyrotherm.analysis._select import _refine_all
     from gyrotherm.analysis._unexplained import evaluate_with, knots_for
 
-    generating = {**effects, **{k: v for k, v in (unresolved or {}).items()
-                                if k not in effects}}
     ratios = []
-    for null_sel in _null_selectors(selector, generating, readouts, crossing_s, seed=seed,
-                                    replays=replays):
+    for null_sel in _null_selectors(selector, dict(effects), readouts, crossing_s, seed=seed,
+                                    replays=replays, unresolved=unresolved):
         fitted = dict(_refine_all(null_sel, null_sel.evaluate(dict(effects))).effects)
         rest = {k: v for k, v in fitted.items() if k != name}
         other = [(w, knots_for(null_sel.runs, w, k)) for w, k in splines]

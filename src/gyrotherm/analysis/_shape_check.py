@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from gyrotherm.analysis._resolve import NotResolvable
 from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._unexplained import evaluate_with, knots_for, two_stage
 
@@ -115,10 +116,9 @@ class ShapeNotes:
     at this readout (the spline's advantage is no more than readout replays give)."""
 
     differs: Mapping[str, str] = field(default_factory=dict)
-    unresolved: Mapping[str, str] = field(default_factory=dict)
-    ratios: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
-    """Per unresolved effect: ``ratio`` (the runs'), ``null_ratio`` (the replays' largest),
-    ``improved_runs``."""
+    unresolved: Mapping[str, NotResolvable] = field(default_factory=dict)
+    """Effect → its ``shape:<effect>`` verdict, params ``ratio`` (the runs'), ``null_ratio``
+    (the replays' largest), ``improved_runs``."""
 
 
 Replay = Callable[[str, str, int], Sequence[float]]
@@ -138,8 +138,7 @@ def shape_notes(
     taken = {v for v, _ in splines}
     base: Evaluation | None = None
     notes: dict[str, str] = {}
-    unresolved: dict[str, str] = {}
-    ratios: dict[str, dict[str, float]] = {}
+    unresolved: dict[str, NotResolvable] = {}
     for name in effects:
         v = SHAPE_VARIABLE.get(name)
         if v is None:
@@ -158,14 +157,14 @@ def shape_notes(
                 continue
             nulls = tuple(replay(name, v, len(knots))) if replay is not None else ()
             if nulls and ratio < (1.0 + SHAPE_MARGIN) * max(nulls):
-                unresolved[name] = (
+                unresolved[name] = NotResolvable(
+                    f"shape:{name}",
+                    {"ratio": ratio, "null_ratio": max(nulls), "improved_runs": float(improved)},
                     f"a linear spline in {v} in place of {FORMS[name]} is better held out "
                     f"(×{ratio:.3f}, better on {improved}/{len(selector.runs)} left-out runs), "
                     f"but on readout replays of the runs with {FORMS[name]} exactly it is "
                     f"×{max(nulls):.3f}: not ×{1.0 + SHAPE_MARGIN:.2f} above what the "
                     f"readout does to {FORMS[name]}")
-                ratios[name] = {"ratio": ratio, "null_ratio": max(nulls),
-                                "improved_runs": float(improved)}
                 continue
             text = (f"the shape differs: a linear spline in {v} in place of {FORMS[name]} is "
                     f"better held out (RMS {base.heldout_rms_dps:.5f} → "
@@ -178,4 +177,4 @@ def shape_notes(
             text += "; the structure is " + _gradient_shape(
                 knots, two_stage(selector.runs, resid, v, knots))
         notes[name] = text
-    return ShapeNotes(notes, unresolved, ratios)
+    return ShapeNotes(notes, unresolved)
