@@ -127,6 +127,12 @@ NULL_CONFIRM6_SEEDS) after the seventh set was scored, before the change it scor
 beside a hysteresis that the hysteresis' first branch matches is a verdict; a first version,
 the hysteresis' initial state, was dropped on development) and before any result on it; run
 once."""
+SHAPE_EVAL9_SEEDS = (461, 462, 463, 464, 465)
+"""Ninth evaluation set for the shapes, fixed (the commit adding this line, with
+NULL_CONFIRM7_SEEDS) after the eighth set was scored, before round 7's change is scored
+(the shape check's power: a catalogued effect in ΔT whose shape the readout replays show
+cannot be told from its nearest alternative is a ``shape:`` verdict; a memory effect a
+function of ΔT does as well as gets the note) and before any result on it; run once."""
 NULL_EVAL_SEEDS = tuple(range(5001, 5801))
 """Null-only evaluation (issue 19 item 1, "nulls at scale"): 800 seeds, fixed (the commit
 adding this line) before any result on them was seen; never used while developing; run
@@ -161,8 +167,11 @@ Seed j at CONDITIONS[j % 4]: 150 distinct devices per condition."""
 NULL_CONFIRM6_SEEDS = tuple(range(18001, 18601))
 """Fresh nulls for the same change, fixed with SHAPE_EVAL8_SEEDS before it; run once. Seed j
 at CONDITIONS[j % 4]: 150 distinct devices per condition."""
+NULL_CONFIRM7_SEEDS = tuple(range(20001, 20601))
+"""Fresh nulls for round 7, fixed with SHAPE_EVAL9_SEEDS before it is scored; run once. Seed j
+at CONDITIONS[j % 4]: 150 distinct devices per condition."""
 NULL_SETS = (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS, NULL_CONFIRM2_SEEDS, NULL_CONFIRM3_SEEDS,
-             NULL_CONFIRM4_SEEDS, NULL_CONFIRM5_SEEDS, NULL_CONFIRM6_SEEDS)
+             NULL_CONFIRM4_SEEDS, NULL_CONFIRM5_SEEDS, NULL_CONFIRM6_SEEDS, NULL_CONFIRM7_SEEDS)
 """Null-only sets: one device per diagnosis, conditions in turn."""
 SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "shapes-dev": SHAPE_DEV_SEEDS, "shapes-eval": SHAPE_EVAL_SEEDS,
@@ -173,7 +182,8 @@ SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "null-confirm3": NULL_CONFIRM3_SEEDS, "shapes-eval6": SHAPE_EVAL6_SEEDS,
              "null-confirm4": NULL_CONFIRM4_SEEDS, "shapes-eval7": SHAPE_EVAL7_SEEDS,
              "null-confirm5": NULL_CONFIRM5_SEEDS, "shapes-eval8": SHAPE_EVAL8_SEEDS,
-             "null-confirm6": NULL_CONFIRM6_SEEDS}
+             "null-confirm6": NULL_CONFIRM6_SEEDS, "shapes-eval9": SHAPE_EVAL9_SEEDS,
+             "null-confirm7": NULL_CONFIRM7_SEEDS}
 DURATION_S = 6000.0
 STEP_AT_C = 30.0
 CHECKED = {

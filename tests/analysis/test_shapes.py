@@ -90,6 +90,12 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
     # the 0.5 degC development nulls overlap no evaluation or confirmation set
     assert not set(sweep.NULL_DEV2_SEEDS) & {*before8, *sweep.SHAPE_EVAL8_SEEDS,
                                              *sweep.NULL_CONFIRM6_SEEDS}
+    assert sweep.SHAPE_EVAL9_SEEDS == (461, 462, 463, 464, 465)
+    assert sweep.NULL_CONFIRM7_SEEDS == tuple(range(20001, 20601))
+    before9 = {*before8, *sweep.SHAPE_EVAL8_SEEDS, *sweep.NULL_CONFIRM6_SEEDS,
+               *sweep.NULL_DEV2_SEEDS}
+    assert not set(sweep.SHAPE_EVAL9_SEEDS) & before9
+    assert not set(sweep.NULL_CONFIRM7_SEEDS) & {*before9, *sweep.SHAPE_EVAL9_SEEDS}
     assert sweep.NULL_CONFIRM3_SEEDS == tuple(range(12001, 12601))
     assert not set(sweep.NULL_CONFIRM3_SEEDS) & {
         *used, *SHAPE_DEV2_SEEDS, *SHAPE_EVAL5_SEEDS, *sweep.NULL_EVAL_SEEDS,
