@@ -1,8 +1,8 @@
 """Does the diagnosis generalise beyond the catalogue's exact forms? A seeded sweep.
 
     .venv/bin/python scripts/generalisation_sweep.py
-        [--seeds dev|eval|eval1|shapes-dev|shapes-eval|shapes-eval2|shapes-eval3|
-                 shapes-eval4|null-eval|null-confirm|null-confirm2]
+        [--seeds dev|eval|eval1|shapes-dev|shapes-dev2|shapes-eval…shapes-eval9|
+                 null-eval|null-confirm…null-confirm7]
         [--quick] [--conditions I ...] [--cases NAME ...] [--json OUT]
 
 Per case (what is injected) × condition (sample rate, temperature readout, number
@@ -541,7 +541,7 @@ def sweep(seeds: Sequence[int], *, quick: bool = False, conditions: Sequence[int
     if set(seeds) & {*SHAPE_DEV_SEEDS, *SHAPE_EVAL_SEEDS, *SHAPE_EVAL2_SEEDS,
                      *SHAPE_EVAL3_SEEDS, *SHAPE_EVAL4_SEEDS, *SHAPE_DEV2_SEEDS,
                      *SHAPE_EVAL5_SEEDS, *SHAPE_EVAL6_SEEDS, *SHAPE_EVAL7_SEEDS,
-                     *SHAPE_EVAL8_SEEDS}:
+                     *SHAPE_EVAL8_SEEDS, *SHAPE_EVAL9_SEEDS}:
         cases = list(SHAPE_CASES)
     if only:
         cases = [c for n, c in CASES_BY_NAME.items() if n in only]

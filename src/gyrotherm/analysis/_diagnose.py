@@ -52,7 +52,7 @@ from gyrotherm.analysis._compare import (
 )
 from gyrotherm.analysis._effects import EFFECTS, ExtendedModel
 from gyrotherm.analysis._first_branch import drop_warmup_like_first_branch
-from gyrotherm.analysis._null_replay import replay_shape
+from gyrotherm.analysis._null_replay import Columns, replay_shape
 from gyrotherm.analysis._prep import (
     DEFAULT_TAU_S,
     Prepared,
@@ -314,9 +314,17 @@ def diagnose(
                             splines=[(u.variable, len(u.knots)) for u in unexplained],
                             unresolved=unresolved, seed=seed, replays=NULL_REPLAYS)
 
+    def shape_power(name: str, variable: str, n_knots: int,
+                    columns: Columns) -> tuple[float, ...]:
+        return replay_shape(selector, dict(final_ev.effects), readouts, limit.lsb_crossing_s,
+                            name, variable, n_knots,
+                            splines=[(u.variable, len(u.knots)) for u in unexplained],
+                            unresolved=unresolved, seed=seed, replays=NULL_REPLAYS,
+                            alternative=columns)
+
     checked = shape_notes(selector, final_ev.effects,
                           [(u.variable, np.array(u.knots)) for u in unexplained],
-                          replay=shape_replay)
+                          replay=shape_replay, power=shape_power)
     shapes = dict(checked.differs)
     for name, verdict in checked.unresolved.items():
         if name == "warmup" and warmup_note:  # the second warm-up's own held-out test

@@ -32,7 +32,7 @@ lag's τ are what the readout alone produces (:func:`replay_lag`).
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -124,13 +124,68 @@ def replay_readout(readouts: Sequence[Readout]) -> Readout:
                    noise_c=float(np.median(white)))
 
 
+Columns = Callable[[FloatArray], Sequence[FloatArray]]
+"""ΔT (°C) → candidate columns of an alternative shape (e.g. tanh(ΔT/s) for several s)."""
+
+
+@dataclass(frozen=True)
+class Alternative:
+    """An effect of the runs' model replaced, in the replays' generating model, by another
+    shape in ΔT of the same size: ``effect`` (name → nonlinear parameter) is fitted with
+    the rest on the step-free runs, and its contribution (that model's prediction less
+    the rest's, refitted alone) is projected on each candidate column of ``columns``
+    (amplitude fitted, per-run offsets free); the closest candidate, at that amplitude,
+    is generated in the effect's place."""
+
+    effect: Mapping[str, float]
+    columns: Columns
+
+
+def _alternative(
+    true_sel: Selector, rest: Mapping[str, float], model: Evaluation, alt: Alternative
+) -> tuple[FloatArray, list[FloatArray], float]:
+    """The generating model with the alternative (:class:`Alternative`): coefficients of
+    ``model``'s columns (the rest's), the alternative's column per run (amplitude in it),
+    and the white noise (°/s) of the model with the effect.
+
+    The model with the effect is fitted on the step-free runs; its prediction is then
+    fitted by the rest's columns and one candidate column jointly (per-run offsets free),
+    and the candidate that fits it closest is kept: with the catalogued form itself as
+    the only candidate, the generating model is the model with the effect."""
+    from gyrotherm.analysis._select import _refine_all
+
+    full = _refine_all(true_sel, true_sel.evaluate({**rest, **alt.effect}))
+    target = np.concatenate([
+        (p.rate_dps - p.rate_dps.mean()) - r
+        for p, r in zip(true_sel.runs, true_sel.residuals(full.effects, full.coefficients),
+                        strict=True)])
+    xs = []
+    for p in true_sel.runs:
+        _, x = design(p.time_s, p.temperature_c, p.delta_t_c, true_sel.scaling, model.effects)
+        xs.append(x - x.mean(axis=0))
+    cands = [alt.columns(p.delta_t_c) for p in true_sel.runs]
+    best: tuple[float, FloatArray, list[FloatArray]] | None = None
+    for k in range(len(cands[0])):
+        cols = [np.asarray(c[k], dtype=np.float64) for c in cands]
+        m = np.vstack([np.column_stack([x, c - c.mean()]) for x, c in zip(xs, cols,
+                                                                          strict=True)])
+        coef, *_ = np.linalg.lstsq(m, target, rcond=None)
+        miss = float(np.sum((target - m @ coef) ** 2))
+        if best is None or miss < best[0]:
+            best = (miss, np.asarray(coef[:-1], dtype=np.float64), [coef[-1] * c for c in cols])
+    assert best is not None
+    return best[1], best[2], float(np.sqrt(full.rss / full.n))
+
+
 def _null_selectors(
     selector: Selector, rest: dict[str, float], readouts: Sequence[Readout], crossing_s: float,
     *, seed: int, replays: int, unresolved: Mapping[str, float] | None = None,
+    alternative: Alternative | None = None,
 ) -> Iterator[Selector]:
     """``replays`` readout replays of the runs with the model ``rest`` (module docstring,
     steps 1–3), each as a selector on the replayed runs; ``unresolved`` effects (name →
-    nonlinear parameter) are added to the generating model where ``rest`` lacks them."""
+    nonlinear parameter) are added to the generating model where ``rest`` lacks them;
+    ``alternative``: its shape of the same size as its effect is added (:class:`Alternative`)."""
     from gyrotherm.analysis._select import _refine_all
 
     rest = {**(unresolved or {}), **rest}
@@ -146,14 +201,18 @@ def _null_selectors(
     true_sel = Selector(true_runs, selector.scaling)
     model = _refine_all(true_sel, true_sel.evaluate(rest))
     noise = float(np.sqrt(model.rss / model.n))
+    coefficients = model.coefficients
+    extra = [np.zeros(len(p)) for p in true_runs]
+    if alternative is not None:
+        coefficients, extra, noise = _alternative(true_sel, rest, model, alternative)
     readout = replay_readout(readouts)
     rng = np.random.default_rng(seed)
     for _ in range(replays):
-        replayed = []
-        for p, tp in zip(selector.runs, true_runs, strict=True):
+        replayed: list[Prepared] = []
+        for p, tp, add in zip(selector.runs, true_runs, extra, strict=True):
             _, x = design(tp.time_s, tp.temperature_c, tp.delta_t_c, selector.scaling,
                           model.effects)
-            y = x @ model.coefficients + rng.standard_normal(len(p)) * noise
+            y = x @ coefficients + add + rng.standard_normal(len(p)) * noise
             temp, rate_c = _smooth(reread(p.time_s, tp.temperature_c, readout, rng))
             replayed.append(replace(p, temperature_c=temp, rate_c_per_s=rate_c,
                                     delta_t_c=tau * rate_c, rate_dps=y))
@@ -219,7 +278,7 @@ def replay_shape(
     selector: Selector, effects: dict[str, float], readouts: Sequence[Readout],
     crossing_s: float, name: str, variable: str, n_knots: int, *,
     splines: Sequence[tuple[str, int]] = (), unresolved: Mapping[str, float] | None = None,
-    seed: int = 0, replays: int = 2,
+    seed: int = 0, replays: int = 2, alternative: Columns | None = None,
 ) -> tuple[float, ...]:
     """Null ratios of the shape check (:mod:`._shape_check`) for the catalogued ``name``:
     on readout replays of the model ``effects`` — ``name`` in its catalogued form, so
@@ -232,13 +291,22 @@ def replay_shape(
     As on the runs: the effects' nonlinear parameters are refitted on each replay, the
     unexplained ``splines`` already reported (variable, knot count) are fitted in both
     models, and the effects left out as not resolvable (``unresolved``) are in the
-    replays' generating model only (:func:`replay_spline`)."""
+    replays' generating model only (:func:`replay_spline`).
+
+    ``alternative``: the check's power instead of its null. ``name`` is generated as
+    the closest of these shapes in ΔT of the same size (:class:`Alternative`), and the
+    model fitted to the replays still has ``name`` in its catalogued form: the ratios
+    say whether the check tells that shape from the catalogue's at this readout."""
     from gyrotherm.analysis._select import _refine_all
     from gyrotherm.analysis._unexplained import evaluate_with, knots_for
 
     ratios = []
-    for null_sel in _null_selectors(selector, dict(effects), readouts, crossing_s, seed=seed,
-                                    replays=replays, unresolved=unresolved):
+    generating = dict(effects)
+    swap = None
+    if alternative is not None:
+        swap = Alternative({name: generating.pop(name)}, alternative)
+    for null_sel in _null_selectors(selector, generating, readouts, crossing_s, seed=seed,
+                                    replays=replays, unresolved=unresolved, alternative=swap):
         fitted = dict(_refine_all(null_sel, null_sel.evaluate(dict(effects))).effects)
         rest = {k: v for k, v in fitted.items() if k != name}
         other = [(w, knots_for(null_sel.runs, w, k)) for w, k in splines]

@@ -113,8 +113,10 @@ def lag_limit(
 @dataclass(frozen=True)
 class NotResolvable:
     """An effect the selection chose that the data cannot support at this readout (or,
-    for ``effect = "shape:<name>"``, a finding whose different shape it cannot support:
-    the finding stays, without the note; :mod:`._shape_check`)."""
+    for ``effect = "shape:<name>"``, a finding whose shape it cannot resolve — a spline
+    no better than the readout replays give, or a readout under which the check could not
+    tell the form from its nearest alternative — the finding stays, without the note;
+    :mod:`._shape_check`)."""
 
     effect: str
     params: Mapping[str, float]
