@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 
 from gyrotherm.analysis import SynthConfig, diagnose
-from gyrotherm.analysis._null_replay import Alternative, _alternative
+from gyrotherm.analysis._null_replay import Alternative, _alternative, replay_shape
+from gyrotherm.analysis._prep import characterise
 from gyrotherm.analysis._score import Selector
-from gyrotherm.analysis._shape_check import SHAPE_MARGIN, _power
+from gyrotherm.analysis._shape_check import SHAPE_MARGIN, _power, passes
 from gyrotherm.analysis.synth._variants import variant_runs
 
 from .conftest import CORNER_CFG
@@ -33,7 +34,6 @@ def test_power_by_hand() -> None:
     assert v.params["null_ratio"] == 1.04 and v.params["alternative_ratio"] == 1.05
     assert v.params["told_apart"] == 1.0 and v.params["replays"] == 2.0
     assert "k·|ΔT|" in v.reason and "×1.071" in v.reason and "1/2" in v.reason
-    assert (1.0 + SHAPE_MARGIN) * 1.04 == pytest.approx(1.0712)
     # both above ×1.0712: the check would tell them apart, so no verdict
     assert _power("gradient_quadratic", "delta_t_c", 9, 1.01, nulls,
                   lambda *_: (1.08, 1.072)) is None
@@ -47,7 +47,27 @@ def test_power_by_hand() -> None:
     v = _power("thermal_lag", "delta_t_c", 9, 0.9, replay, lambda *_: (0.95, 0.99),
                nulls=(0.97,))
     assert made == [] and v is not None and v.params["null_ratio"] == 0.97
-    assert "A·tanh(ΔT/s)" in v.reason
+    assert "A·tanh(ΔT/s)" in v.reason and v.params["told_apart"] == 0.0
+    # a memory effect: exact-form replays at ×0.85 need 1.03 × 0.85 = ×0.8755, but a note
+    # also needs the spline as good as the effect within the margin, ×1/1.03 = ×0.9709:
+    # ×0.90 is not told apart, ×0.98 is
+    v = _power("hysteresis", "delta_t_c", 9, 0.9, replay, lambda *_: (0.90, 0.98),
+               nulls=(0.85,))
+    assert v is not None and v.params["told_apart"] == 1.0 and "×0.971" in v.reason
+    assert _power("hysteresis", "delta_t_c", 9, 0.9, replay, lambda *_: (0.98, 0.975),
+                  nulls=(0.85,)) is None
+
+
+def test_the_note_rule_by_hand() -> None:
+    # gradient²: ×1.03 better than the effect and ×1.03 above the replays' largest
+    assert passes("gradient_quadratic", 1.05, (1.0, 1.01))  # needs max(1.03, 1.0403)
+    assert not passes("gradient_quadratic", 1.04, (1.0, 1.01))
+    assert not passes("gradient_quadratic", 1.02, (0.90,))  # above the replays, below 1.03
+    # a memory effect: as good within the margin (≥ 1/1.03) is enough
+    assert passes("thermal_lag", 0.994, (0.83, 0.833))
+    assert not passes("thermal_lag", 0.96, (0.80,))  # ×0.96 < 1/1.03
+    assert not passes("hysteresis", 0.98, (0.96,))  # needs 1.03 × 0.96 = 0.9888
+    assert passes("hysteresis", 1.04, ())  # no replays: the plain rule
 
 
 def test_the_alternative_that_is_the_catalogued_form_generates_the_model_with_it() -> None:
@@ -58,23 +78,22 @@ def test_the_alternative_that_is_the_catalogued_form_generates_the_model_with_it
                            seed=1)
     d = diagnose(runs, simulate=False)
     sel = Selector(list(d.prepared), d.baseline.scaling)
-    rest = sel.evaluate({})
     full = sel.evaluate({"gradient_quadratic": 0.0})
-    coef, extra, noise = _alternative(
-        sel, {}, rest, Alternative({"gradient_quadratic": 0.0}, lambda dt: [dt**2]))
-    assert noise == pytest.approx(np.sqrt(full.rss / full.n))
+    others, coef, extra, noise = _alternative(
+        sel, {}, Alternative({"gradient_quadratic": 0.0}, lambda dt: [dt**2]))
+    assert others == {} and noise == pytest.approx(np.sqrt(full.rss / full.n))
     from gyrotherm.analysis._effects import design
     for p, add, r in zip(sel.runs, extra, sel.residuals(full.effects, full.coefficients),
                          strict=True):
-        _, x = design(p.time_s, p.temperature_c, p.delta_t_c, sel.scaling, rest.effects)
+        _, x = design(p.time_s, p.temperature_c, p.delta_t_c, sel.scaling, others)
         generated = x @ coef + add
         predicted = (p.rate_dps - p.rate_dps.mean()) - r
         assert np.max(np.abs((generated - generated.mean()) - predicted)) < 1e-9
     # a candidate of another shape (|ΔT|) does not reproduce it
-    coef2, extra2, _ = _alternative(
-        sel, {}, rest, Alternative({"gradient_quadratic": 0.0}, lambda dt: [np.abs(dt)]))
+    _, coef2, extra2, _ = _alternative(
+        sel, {}, Alternative({"gradient_quadratic": 0.0}, lambda dt: [np.abs(dt)]))
     p = sel.runs[0]
-    _, x = design(p.time_s, p.temperature_c, p.delta_t_c, sel.scaling, rest.effects)
+    _, x = design(p.time_s, p.temperature_c, p.delta_t_c, sel.scaling, others)
     generated = x @ coef2 + extra2[0]
     predicted = (p.rate_dps - p.rate_dps.mean()) - sel.residuals(
         full.effects, full.coefficients)[0]
@@ -129,3 +148,22 @@ def test_an_exact_gradient_quadratic_at_a_fine_readout_is_resolvable() -> None:
     (f,) = d.findings
     assert f.effect == "gradient_quadratic" and f.shape == ""
     assert not [v for v in d.not_resolvable if v.effect.startswith("shape:")]
+
+
+def test_replays_with_the_catalogued_form_as_the_alternative_are_the_null_replays() -> None:
+    # the corner, dev seed 3, c·ΔT² beside a hysteresis (a nonlinear parameter the joint fit
+    # must take from the model with the effect): replays that generate the effect as
+    # "the alternative" c·ΔT² are the exact-form replays (same seed, same draws)
+    runs, _ = variant_runs(replace(CORNER_CFG, effects={"gradient_quadratic": {},
+                                                        "hysteresis": {}}), n_runs=3, seed=3)
+    d = diagnose(runs, simulate=False)
+    sel = Selector(list(d.prepared), d.baseline.scaling)
+    effects = {"gradient_quadratic": 0.0, "hysteresis": 1.0}
+    effects = dict(sel.evaluate(effects, search="hysteresis").effects)
+    readouts = [characterise(r, d.axis) for r in runs]
+    args = (sel, effects, readouts, 20.0, "gradient_quadratic", "delta_t_c", 12)
+    null = replay_shape(*args, seed=5)
+    same = replay_shape(*args, seed=5, alternative=lambda dt: [dt**2])
+    assert same == pytest.approx(null, rel=1e-6)
+    other = replay_shape(*args, seed=5, alternative=lambda dt: [np.abs(dt)])
+    assert other != pytest.approx(null, rel=1e-3)

@@ -131,37 +131,38 @@ Columns = Callable[[FloatArray], Sequence[FloatArray]]
 @dataclass(frozen=True)
 class Alternative:
     """An effect of the runs' model replaced, in the replays' generating model, by another
-    shape in ΔT of the same size: ``effect`` (name → nonlinear parameter) is fitted with
-    the rest on the step-free runs, and its contribution (that model's prediction less
-    the rest's, refitted alone) is projected on each candidate column of ``columns``
-    (amplitude fitted, per-run offsets free); the closest candidate, at that amplitude,
-    is generated in the effect's place."""
+    shape in ΔT of the same size: the model with ``effect`` (name → nonlinear parameter)
+    is fitted on the step-free runs, and its prediction is refitted jointly by the other
+    effects' columns (at that fit's nonlinear parameters) and one candidate column of
+    ``columns`` (per-run offsets free); the candidate that fits the prediction closest is
+    generated in the effect's place, with the other columns at their refitted values
+    (:func:`_alternative`)."""
 
     effect: Mapping[str, float]
     columns: Columns
 
 
 def _alternative(
-    true_sel: Selector, rest: Mapping[str, float], model: Evaluation, alt: Alternative
-) -> tuple[FloatArray, list[FloatArray], float]:
-    """The generating model with the alternative (:class:`Alternative`): coefficients of
-    ``model``'s columns (the rest's), the alternative's column per run (amplitude in it),
-    and the white noise (°/s) of the model with the effect.
+    true_sel: Selector, rest: Mapping[str, float], alt: Alternative
+) -> tuple[dict[str, float], FloatArray, list[FloatArray], float]:
+    """The generating model with the alternative (:class:`Alternative`): the other
+    effects (name → nonlinear parameter, as fitted with the effect), their columns'
+    coefficients, the alternative's column per run (amplitude in it), and the white
+    noise (°/s) of the model with the effect.
 
-    The model with the effect is fitted on the step-free runs; its prediction is then
-    fitted by the rest's columns and one candidate column jointly (per-run offsets free),
-    and the candidate that fits it closest is kept: with the catalogued form itself as
-    the only candidate, the generating model is the model with the effect."""
+    With the catalogued form itself as the only candidate, the generating model is the
+    model with the effect (to rounding; tests/analysis/test_shape_power.py)."""
     from gyrotherm.analysis._select import _refine_all
 
     full = _refine_all(true_sel, true_sel.evaluate({**rest, **alt.effect}))
+    others = {k: v for k, v in full.effects.items() if k not in alt.effect}
     target = np.concatenate([
         (p.rate_dps - p.rate_dps.mean()) - r
         for p, r in zip(true_sel.runs, true_sel.residuals(full.effects, full.coefficients),
                         strict=True)])
     xs = []
     for p in true_sel.runs:
-        _, x = design(p.time_s, p.temperature_c, p.delta_t_c, true_sel.scaling, model.effects)
+        _, x = design(p.time_s, p.temperature_c, p.delta_t_c, true_sel.scaling, others)
         xs.append(x - x.mean(axis=0))
     cands = [alt.columns(p.delta_t_c) for p in true_sel.runs]
     best: tuple[float, FloatArray, list[FloatArray]] | None = None
@@ -174,7 +175,7 @@ def _alternative(
         if best is None or miss < best[0]:
             best = (miss, np.asarray(coef[:-1], dtype=np.float64), [coef[-1] * c for c in cols])
     assert best is not None
-    return best[1], best[2], float(np.sqrt(full.rss / full.n))
+    return others, best[1], best[2], float(np.sqrt(full.rss / full.n))
 
 
 def _null_selectors(
@@ -201,17 +202,17 @@ def _null_selectors(
     true_sel = Selector(true_runs, selector.scaling)
     model = _refine_all(true_sel, true_sel.evaluate(rest))
     noise = float(np.sqrt(model.rss / model.n))
-    coefficients = model.coefficients
+    effects, coefficients = dict(model.effects), model.coefficients
     extra = [np.zeros(len(p)) for p in true_runs]
     if alternative is not None:
-        coefficients, extra, noise = _alternative(true_sel, rest, model, alternative)
+        effects, coefficients, extra, noise = _alternative(true_sel, rest, alternative)
     readout = replay_readout(readouts)
     rng = np.random.default_rng(seed)
     for _ in range(replays):
         replayed: list[Prepared] = []
         for p, tp, add in zip(selector.runs, true_runs, extra, strict=True):
             _, x = design(tp.time_s, tp.temperature_c, tp.delta_t_c, selector.scaling,
-                          model.effects)
+                          effects)
             y = x @ coefficients + add + rng.standard_normal(len(p)) * noise
             temp, rate_c = _smooth(reread(p.time_s, tp.temperature_c, readout, rng))
             replayed.append(replace(p, temperature_c=temp, rate_c_per_s=rate_c,
@@ -303,8 +304,9 @@ def replay_shape(
     ratios = []
     generating = dict(effects)
     swap = None
-    if alternative is not None:
+    if alternative is not None:  # the effect is generated as the alternative only
         swap = Alternative({name: generating.pop(name)}, alternative)
+        unresolved = {k: v for k, v in (unresolved or {}).items() if k != name}
     for null_sel in _null_selectors(selector, generating, readouts, crossing_s, seed=seed,
                                     replays=replays, unresolved=unresolved, alternative=swap):
         fitted = dict(_refine_all(null_sel, null_sel.evaluate(dict(effects))).effects)

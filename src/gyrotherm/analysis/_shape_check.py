@@ -165,7 +165,9 @@ class ShapeNotes:
     differs: Mapping[str, str] = field(default_factory=dict)
     unresolved: Mapping[str, NotResolvable] = field(default_factory=dict)
     """Effect → its ``shape:<effect>`` verdict, params ``ratio`` (the runs'), ``null_ratio``
-    (the replays' largest), ``improved_runs``."""
+    (the exact-form replays' largest), and ``improved_runs`` (a spline better held out
+    but not beyond the replays) or ``alternative_ratio`` (the alternative's replays'
+    smallest), ``told_apart`` and ``replays`` (the check's power, :func:`_power`)."""
 
 
 Replay = Callable[[str, str, int], Sequence[float]]
@@ -177,6 +179,18 @@ PowerReplay = Callable[[str, str, int, Columns], Sequence[float]]
 """(effect, variable, knot count, alternative) → the shape check's ratios on readout
 replays with the effect generated as the alternative's closest shape of the same size
 (:func:`~._null_replay.replay_shape` with ``alternative``)."""
+
+
+def passes(name: str, ratio: float, nulls: Sequence[float]) -> bool:
+    """Whether the check's ratio ``ratio`` (held-out RMS with the effect over that with
+    the spline in its place) gives a note against replays of the exact form with ratios
+    ``nulls``: ×(1 + margin) above their largest, and either ×(1 + margin) better than the
+    effect or, for a :data:`MEMORY` effect, as good within the margin (the count of
+    left-out runs improved, which the runs also need, is not asked of replays)."""
+    if nulls and ratio < (1.0 + SHAPE_MARGIN) * max(nulls):
+        return False
+    floor = 1.0 / (1.0 + SHAPE_MARGIN) if name in MEMORY else 1.0 + SHAPE_MARGIN
+    return ratio >= floor
 
 
 def _power(
@@ -191,10 +205,11 @@ def _power(
     alts = tuple(power(name, v, n_knots, columns))
     if not nulls or not alts:
         return None
-    need = (1.0 + SHAPE_MARGIN) * max(nulls)
-    told = sum(1 for a in alts if a >= need)
+    told = sum(1 for a in alts if passes(name, a, nulls))
     if told == len(alts):
         return None
+    need = max((1.0 + SHAPE_MARGIN) * max(nulls),
+               1.0 / (1.0 + SHAPE_MARGIN) if name in MEMORY else 1.0 + SHAPE_MARGIN)
     return NotResolvable(
         f"shape:{name}",
         {"ratio": ratio, "null_ratio": max(nulls), "alternative_ratio": min(alts),
@@ -202,8 +217,10 @@ def _power(
         f"{FORMS[name]} cannot be told from {text} at this readout: on readout replays "
         f"with {text} of the same size in its place, a linear spline in {v} beats "
         f"{FORMS[name]} by ×{min(alts):.3f}–×{max(alts):.3f}, which tells them apart in "
-        f"{told}/{len(alts)} (it needs ×{need:.3f}, ×{1.0 + SHAPE_MARGIN:.2f} above the "
-        f"×{max(nulls):.3f} replays with {FORMS[name]} give); the runs give ×{ratio:.3f}")
+        f"{told}/{len(alts)} (a note needs ×{need:.3f}: ×{1.0 + SHAPE_MARGIN:.2f} above the "
+        f"×{max(nulls):.3f} replays with {FORMS[name]} give, and at least ×"
+        f"{(1.0 / (1.0 + SHAPE_MARGIN) if name in MEMORY else 1.0 + SHAPE_MARGIN):.3f}); "
+        f"the runs give ×{ratio:.3f}")
 
 
 def shape_notes(
@@ -240,14 +257,12 @@ def shape_notes(
                 if replay is None:
                     continue
                 nulls = tuple(replay(name, v, len(knots))) if name in MEMORY else ()
-                if nulls and ratio >= max(1.0 / (1.0 + SHAPE_MARGIN),
-                                          (1.0 + SHAPE_MARGIN) * max(nulls)):
+                if nulls and passes(name, ratio, nulls):
                     text = (f"the shape differs: a linear spline in {v} in place of "
-                            f"{FORMS[name]} does as well held out (×{ratio:.3f}, within ×"
-                            f"{1.0 + SHAPE_MARGIN:.2f}), where on "
-                            f"readout replays of the runs with {FORMS[name]} exactly it "
-                            f"does ×{max(nulls):.3f}: the memory {FORMS[name]} adds to a "
-                            f"function of {v} is not in the data")
+                            f"{FORMS[name]} does as well held out (×{ratio:.3f}, at least "
+                            f"1/{1.0 + SHAPE_MARGIN:.2f}), where on readout replays of the "
+                            f"runs with {FORMS[name]} exactly it does ×{max(nulls):.3f}: what "
+                            f"its memory adds to a function of {v} is not in the data")
                 else:
                     if power is not None and name in ALTERNATIVES:
                         verdict = _power(name, v, len(knots), ratio, replay, power, nulls)
@@ -257,7 +272,7 @@ def shape_notes(
                 notes[name] = text + _described(selector, name, rest, v, knots)
                 continue
             nulls = tuple(replay(name, v, len(knots))) if replay is not None else ()
-            if nulls and ratio < (1.0 + SHAPE_MARGIN) * max(nulls):
+            if nulls and not passes(name, ratio, nulls):
                 unresolved[name] = NotResolvable(
                     f"shape:{name}",
                     {"ratio": ratio, "null_ratio": max(nulls), "improved_runs": float(improved)},
