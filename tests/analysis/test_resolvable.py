@@ -121,12 +121,17 @@ def test_the_readout_lag_is_a_distinct_verdict_in_the_json() -> None:
 @pytest.mark.parametrize(("seed", "condition"), [(101, 0), (3, CORNER), (4, CORNER)])
 def test_a_real_lag_is_still_found(sweep: ModuleType, seed: int, condition: int) -> None:
     """The guard does not suppress everything: an injected die lag (150–500 s) is named,
-    at the reference readout (eval seed) and through the corner readout (dev seeds)."""
+    at the reference readout (eval seed) and through the corner readout (dev seeds).
+    At the corner the shape check's power may add that the lag's shape cannot be told from
+    a saturating ΔT response there (round 7, a ``shape:`` verdict); that keeps the finding,
+    and the lag itself is never left out."""
     case = next(c for c in sweep.CASES if c.name == "thermal_lag")
     row = sweep.run_case(case, sweep.CONDITIONS[condition], seed)
     assert row["found"] == ["thermal_lag"]
     assert row["parameter_errors"]["thermal_lag"] < 0.5
-    assert row["not_resolvable"] == []
+    assert [v for v in row["not_resolvable"] if v != "shape:thermal_lag"] == []
+    if condition != CORNER:
+        assert row["not_resolvable"] == []
 
 
 def test_a_drift_next_to_an_undecayed_warmup_is_not_resolvable_in_these_runs() -> None:
