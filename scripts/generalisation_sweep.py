@@ -538,10 +538,8 @@ def commit() -> str:
 def sweep(seeds: Sequence[int], *, quick: bool = False, conditions: Sequence[int] | None = None,
           only: Sequence[str] | None = None) -> list[dict[str, Any]]:
     cases = [c for c in CASES if c.name in QUICK_CASES] if quick else list(CASES)
-    if set(seeds) & {*SHAPE_DEV_SEEDS, *SHAPE_EVAL_SEEDS, *SHAPE_EVAL2_SEEDS,
-                     *SHAPE_EVAL3_SEEDS, *SHAPE_EVAL4_SEEDS, *SHAPE_DEV2_SEEDS,
-                     *SHAPE_EVAL5_SEEDS, *SHAPE_EVAL6_SEEDS, *SHAPE_EVAL7_SEEDS,
-                     *SHAPE_EVAL8_SEEDS, *SHAPE_EVAL9_SEEDS}:
+    if set(seeds) & {s for name, ss in SEED_SETS.items() if name.startswith("shapes-")
+                     for s in ss}:
         cases = list(SHAPE_CASES)
     if only:
         cases = [c for n, c in CASES_BY_NAME.items() if n in only]

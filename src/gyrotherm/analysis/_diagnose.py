@@ -308,23 +308,17 @@ def diagnose(
             heldout_rms_dps=alone.heldout_rms_dps,
             gain=base_ev.heldout_rms_dps / alone.heldout_rms_dps,
         ))
-    def shape_replay(name: str, variable: str, n_knots: int) -> tuple[float, ...]:
-        return replay_shape(selector, dict(final_ev.effects), readouts, limit.lsb_crossing_s,
-                            name, variable, n_knots,
-                            splines=[(u.variable, len(u.knots)) for u in unexplained],
-                            unresolved=unresolved, seed=seed, replays=NULL_REPLAYS)
-
-    def shape_power(name: str, variable: str, n_knots: int,
-                    columns: Columns) -> tuple[float, ...]:
+    def shape_replay(name: str, variable: str, n_knots: int,
+                     alternative: Columns | None = None) -> tuple[float, ...]:
         return replay_shape(selector, dict(final_ev.effects), readouts, limit.lsb_crossing_s,
                             name, variable, n_knots,
                             splines=[(u.variable, len(u.knots)) for u in unexplained],
                             unresolved=unresolved, seed=seed, replays=NULL_REPLAYS,
-                            alternative=columns)
+                            alternative=alternative)
 
     checked = shape_notes(selector, final_ev.effects,
                           [(u.variable, np.array(u.knots)) for u in unexplained],
-                          replay=shape_replay, power=shape_power)
+                          replay=shape_replay, power=shape_replay)
     shapes = dict(checked.differs)
     for name, verdict in checked.unresolved.items():
         if name == "warmup" and warmup_note:  # the second warm-up's own held-out test

@@ -200,11 +200,12 @@ def _null_selectors(
         rate = np.gradient(t, p.time_s)
         true_runs.append(replace(p, temperature_c=t, rate_c_per_s=rate, delta_t_c=tau * rate))
     true_sel = Selector(true_runs, selector.scaling)
-    model = _refine_all(true_sel, true_sel.evaluate(rest))
-    noise = float(np.sqrt(model.rss / model.n))
-    effects, coefficients = dict(model.effects), model.coefficients
     extra = [np.zeros(len(p)) for p in true_runs]
-    if alternative is not None:
+    if alternative is None:
+        model = _refine_all(true_sel, true_sel.evaluate(rest))
+        effects, coefficients = dict(model.effects), model.coefficients
+        noise = float(np.sqrt(model.rss / model.n))
+    else:
         effects, coefficients, extra, noise = _alternative(true_sel, rest, alternative)
     readout = replay_readout(readouts)
     rng = np.random.default_rng(seed)

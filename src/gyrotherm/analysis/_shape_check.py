@@ -33,14 +33,14 @@ Two questions the ×1.03 alone cannot answer (round 7 of issue 19):
 * **A memory effect.** ``hysteresis`` and ``thermal_lag`` are not functions of ΔT alone
   (a memory of the direction; a lagged temperature), so on replays of their exact form a
   spline in ΔT in their place does clearly worse (×0.78–0.97 on the development seeds).
-  When on the runs it does as well — within the margin of ×1, and ×(1 + margin) above the
+  When on the runs it does as well — ratio at least 1/(1 + margin), and ×(1 + margin) above the
   replays' largest ratio — the memory the form adds to a function of ΔT is not in the
   data: the finding gets the note. A response that saturates in ΔT, named a lag or a
   hysteresis, is the case this is for.
 * **The check's power.** For an effect in ΔT (:data:`ALTERNATIVES`) without a note, the
   readout may simply not let the check tell shapes apart (the ΔT estimate jumps by
   several °C at each code change of a coarse readout, :mod:`._resolution`). The runs are
-  replayed once more with the effect generated as the nearest other shape its note
+  replayed twice more with the effect generated as the nearest other shape its note
   describes, at the effect's size (:class:`~._null_replay.Alternative`), and the check's
   ratio on those replays is compared with what it needs (×(1 + margin) above the replays
   of the exact form). Unless every replay is told apart, the effect gets the verdict
