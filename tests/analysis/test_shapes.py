@@ -96,6 +96,11 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
                *sweep.NULL_DEV2_SEEDS}
     assert not set(sweep.SHAPE_EVAL9_SEEDS) & before9
     assert not set(sweep.NULL_CONFIRM7_SEEDS) & {*before9, *sweep.SHAPE_EVAL9_SEEDS}
+    assert sweep.SHAPE_EVAL10_SEEDS == (481, 482, 483, 484, 485)
+    assert sweep.NULL_CONFIRM8_SEEDS == tuple(range(22001, 22601))
+    before10 = {*before9, *sweep.SHAPE_EVAL9_SEEDS, *sweep.NULL_CONFIRM7_SEEDS}
+    assert not set(sweep.SHAPE_EVAL10_SEEDS) & before10
+    assert not set(sweep.NULL_CONFIRM8_SEEDS) & {*before10, *sweep.SHAPE_EVAL10_SEEDS}
     assert sweep.NULL_CONFIRM3_SEEDS == tuple(range(12001, 12601))
     assert not set(sweep.NULL_CONFIRM3_SEEDS) & {
         *used, *SHAPE_DEV2_SEEDS, *SHAPE_EVAL5_SEEDS, *sweep.NULL_EVAL_SEEDS,
