@@ -21,7 +21,9 @@
    no better than readout replays without it give is a verdict, :mod:`._resolve`, and
    one sharper than the readout can place gets a note saying so, :mod:`._resolution`; a
    catalogued finding whose "shape differs" note the readout alone would produce keeps its
-   name without the note and gets a ``shape:<effect>`` verdict, :mod:`._shape_check`); refit the
+   name without the note and gets a ``shape:<effect>`` verdict, :mod:`._shape_check`); state
+   the detection floor, the held-out gain below which a structure in each variable is not
+   resolvable at this readout (:mod:`._floor`); refit the
    extended model, replay it through the extended simulator, and report
    (schema ``gyrotherm.diagnosis/1``).
 4. Optionally (:func:`export_calibration`) write the chosen extended model as a
@@ -52,6 +54,7 @@ from gyrotherm.analysis._compare import (
 )
 from gyrotherm.analysis._effects import EFFECTS, ExtendedModel
 from gyrotherm.analysis._first_branch import drop_warmup_like_first_branch
+from gyrotherm.analysis._floor import Floor, detection_floors
 from gyrotherm.analysis._null_replay import Columns, replay_shape
 from gyrotherm.analysis._prep import (
     DEFAULT_TAU_S,
@@ -133,6 +136,9 @@ class Diagnosis:
     (:mod:`._resolve`): left out of ``extended``, named with the reason instead. A
     ``shape:<effect>`` entry is different: the effect stays a finding (in ``extended``);
     only the note that its shape differs is not supported (:mod:`._shape_check`)."""
+    floors: tuple[Floor, ...] = field(default_factory=tuple)
+    """The detection floor in each variable (:mod:`._floor`): a structure gaining less
+    than its ``gain`` held out over ``extended`` is not resolvable at this readout."""
 
     @property
     def gain(self) -> float:
@@ -154,6 +160,7 @@ class Diagnosis:
                 "gain": self.gain,
             },
             "not_resolvable": [v.to_dict() for v in self.not_resolvable],
+            "detection_floor": [f.to_dict() for f in self.floors],
             "simulation": sim.to_dict() if sim else {"mismatch": [], "calibration": None},
             "notes": list(self.notes),
         }
@@ -292,6 +299,10 @@ def diagnose(
     if search.dropped:
         notes.append(f"dropped {', '.join(search.dropped)}: with the unexplained correction it "
                      "no longer earns its place (it stood in for that structure)")
+    say("measuring the detection floor (readout replays without a structure)")
+    floors = detection_floors(selector, final_ev.effects, readouts, limit.lsb_crossing_s,
+                              final_ev.heldout_rms_dps, VARIABLES, margin=margin, seed=seed,
+                              replays=NULL_REPLAYS, unresolved=unresolved)
     baseline = selector.model(base_ev)
     extended = selector.model(final_ev)
     params = extended.params()
@@ -347,7 +358,7 @@ def diagnose(
         residuals=tuple(resid), extended_residuals=tuple(ext_resid),
         heldout_baseline=held_b, heldout_extended=held_e,
         tau_s=tau_s, tau_from_chamber=tau_fit is not None, notes=tuple(notes),
-        unexplained=tuple(unexplained), not_resolvable=verdicts,
+        unexplained=tuple(unexplained), not_resolvable=verdicts, floors=floors,
     )
     if not simulate:
         return diagnosis

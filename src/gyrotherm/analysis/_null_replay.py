@@ -262,18 +262,33 @@ def replay_spline(
     the null is then what the readout gives plus what the data could not resolve, so a
     spline that only stands in for a left-out hysteresis, lag or drift is not reported
     in its place."""
+    gains, how = replay_splines(selector, effects, readouts, crossing_s, (variable,),
+                                seed=seed, replays=replays, unresolved=unresolved)
+    return gains[variable], how
+
+
+def replay_splines(
+    selector: Selector, effects: dict[str, float], readouts: Sequence[Readout],
+    crossing_s: float, variables: Sequence[str], *, seed: int = 0, replays: int = 2,
+    unresolved: Mapping[str, float] | None = None,
+) -> tuple[dict[str, tuple[float, ...]], str]:
+    """:func:`replay_spline` for each of ``variables`` on the same replays (the replays
+    depend on ``seed``, not on the variable, so each variable's gains are those
+    :func:`replay_spline` gives it alone)."""
     from gyrotherm.analysis._unexplained import evaluate_with, spline_knots
 
     _, how = step_free(selector.runs, crossing_s)
-    gains = []
+    gains: dict[str, list[float]] = {v: [] for v in variables}
     for null_sel in _null_selectors(selector, dict(effects), readouts, crossing_s, seed=seed,
                                     replays=replays, unresolved=unresolved):
         before = evaluate_with(null_sel, effects, [])
-        knots = spline_knots(null_sel, effects, [], variable, before)  # as the search does
-        trials = [evaluate_with(null_sel, {k: v for k, v in effects.items() if k != name},
-                                [(variable, knots)]) for name in ("", *effects)]
-        gains.append(before.heldout_rms_dps / min(t.heldout_rms_dps for t in trials))
-    return tuple(gains), how
+        for variable in variables:
+            knots = spline_knots(null_sel, effects, [], variable, before)  # as the search does
+            trials = [evaluate_with(null_sel, {k: v for k, v in effects.items() if k != name},
+                                    [(variable, knots)]) for name in ("", *effects)]
+            gains[variable].append(before.heldout_rms_dps
+                                   / min(t.heldout_rms_dps for t in trials))
+    return {v: tuple(g) for v, g in gains.items()}, how
 
 
 def replay_shape(

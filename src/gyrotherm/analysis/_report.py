@@ -144,6 +144,16 @@ def write_report(d: Diagnosis, directory: str | Path) -> Path:
         lines += ["", f"## {v.effect}: not resolvable at this readout", "",
                   f"- fitted: {', '.join(f'{k} = {_fmt(x)}' for k, x in v.params.items())}",
                   f"- reason: {v.reason}"]
+    if d.floors:
+        lines += ["", "## Detection floor", "",
+                  "A structure in a variable gaining less than its floor held out over the "
+                  f"{d.extended.name} model is not resolvable at this readout, whatever its "
+                  "shape: the floor is the margin above what readout replays without any "
+                  "structure give a spline in it.", "",
+                  "| variable | floor (held-out gain) | about (°/s RMS) | replays without one |",
+                  "|---|---|---|---|"]
+        lines += [f"| {f.variable} | ×{f.gain:.3f} | {_fmt(f.rms_dps)} | ×{f.null_gain:.3f} |"
+                  for f in d.floors]
     lines += ["", "## Effects tried on the baseline", "",
               "| effect | held-out gain | left-out runs improved | ΔBIC_eff |", "|---|---|---|---|"]
     for name, (ratio, improved, dbic) in d.selection.tried.items():
