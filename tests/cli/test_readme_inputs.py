@@ -46,7 +46,7 @@ def test_readme_bring_your_own_data(tmp_path: Path) -> None:
     shutil.copy(dbc, tmp_path / "my-gyro.dbc")
     shutil.copy(signals, tmp_path / "my-gyro.toml")
     commands = section_commands()
-    assert len(commands) == 5
+    assert len(commands) == 6
     ran = []
     for command in commands:
         argv = shlex.split(command)
@@ -71,6 +71,12 @@ def test_readme_bring_your_own_data(tmp_path: Path) -> None:
         doc = json.loads((tmp_path / "bmi270.cal.json").read_text())
         assert [r["name"] for r in doc["provenance"]["runs"]] == [
             "bmi270_static_clean:cold", "bmi270_static_clean:hot"]
+        # the PuTTY captures: the curator's row counts (SOURCE.md), the dropped lines listed
+        cold = read_run(tmp_path / "putty" / "BMI_270_cold_test_.csv")
+        hot = read_run(tmp_path / "putty" / "BMI_270_hot_test.csv")
+        assert (len(cold), len(hot)) == (3255, 6533)
+        assert hot.metadata["dropped_lines"].startswith("3: line 2: expected 7 fields")
+        assert cold.time_s[-1] == pytest.approx(3254 * 0.02, abs=1e-9)
 
 
 @pytest.mark.parametrize("command", section_commands())

@@ -11,8 +11,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from gyrotherm._errors import ConfigError
 from gyrotherm.codecs import Run
-from gyrotherm.readers import FORMATS, InputSpec, load_signal_map, parse_columns
+from gyrotherm.readers import BAD_LINES, FORMATS, InputSpec, load_signal_map, parse_columns
 
 _DELIMITERS = {"comma": ",", "semicolon": ";", "tab": "\t", "whitespace": " "}
 
@@ -34,6 +35,14 @@ def add_input_options(parser: argparse.ArgumentParser) -> None:
                    "run-file and PX4 ulog2csv sensor_gyro headers)")
     g.add_argument("--delimiter", choices=list(_DELIMITERS),
                    help="delimiter of delimited text (default: detected from the header)")
+    g.add_argument("--rate-hz", type=float, metavar="HZ",
+                   help="nominal sample rate of delimited text without time stamps (a "
+                   "serial capture): time = row index / HZ, recorded as nominal; no time "
+                   "column then (default: a time column)")
+    g.add_argument("--bad-lines", choices=BAD_LINES, default="error",
+                   help="a damaged line of delimited text (wrong field count, a mapped cell "
+                   "not a finite number): stop with an error naming it, or skip it (each "
+                   "run's metadata lists the lines dropped and why) (default error)")
     g.add_argument("--dbc", metavar="FILE",
                    help="DBC of candump logs (default: the shipped gyro.dbc)")
     g.add_argument("--signals", metavar="FILE.toml",
@@ -55,19 +64,25 @@ def spec_from_args(args: argparse.Namespace) -> InputSpec:
     delimiter = getattr(args, "delimiter", None)
     dbc = getattr(args, "dbc", None)
     signals = getattr(args, "signals", None)
+    rate_hz = getattr(args, "rate_hz", None)
+    if rate_hz is not None and not columns:
+        raise ConfigError(f"--rate-hz {rate_hz:g} needs --columns (the temperature and rate "
+                          "columns of the log without time stamps, e.g. --columns "
+                          "temperature=1:degC x=5:dps)")
     return InputSpec(
         format=getattr(args, "format", "auto"),
-        columns=parse_columns(columns) if columns else None,
+        columns=parse_columns(columns, rate_hz=rate_hz) if columns else None,
         delimiter=_DELIMITERS[delimiter] if delimiter else None,
         dbc=Path(dbc) if dbc else None,
         signals=load_signal_map(signals) if signals else None,
         imu_topic=getattr(args, "imu_topic", None),
         temperature_topic=getattr(args, "temperature_topic", None),
+        bad_lines=getattr(args, "bad_lines", "error"),
     )
 
 
 _OPTION_KEYS = ("format", "columns", "delimiter", "dbc", "signals", "imu_topic",
-                "temperature_topic")
+                "temperature_topic", "rate_hz", "bad_lines")
 
 
 def recorded_options(args: argparse.Namespace) -> dict[str, object]:
@@ -77,7 +92,7 @@ def recorded_options(args: argparse.Namespace) -> dict[str, object]:
     out: dict[str, object] = {}
     for key in _OPTION_KEYS:
         value = getattr(args, key, None)
-        if value is None or (key == "format" and value == "auto"):
+        if value is None or (key, value) in (("format", "auto"), ("bad_lines", "error")):
             continue
         out[key] = str(Path(value).resolve()) if key in ("dbc", "signals") else value
     return out
@@ -88,7 +103,7 @@ def with_recorded_options(args: argparse.Namespace,
     """``args`` with the input options a calibration recorded filled in where the
     command line gave none (the command line wins)."""
     if not isinstance(recorded, dict) or any(
-            getattr(args, k, None) not in (None, "auto") for k in _OPTION_KEYS):
+            getattr(args, k, None) not in (None, "auto", "error") for k in _OPTION_KEYS):
         return args
     merged = argparse.Namespace(**vars(args))
     for key in _OPTION_KEYS:

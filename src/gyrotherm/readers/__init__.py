@@ -18,9 +18,11 @@ from gyrotherm.readers._spec import (
     parse_columns,
 )
 from gyrotherm.readers._text import read_text
+from gyrotherm.readers._textscan import BAD_LINES
 from gyrotherm.readers._units import PROJECT_UNIT, UNITS, Unit
 
 __all__ = [
+    "BAD_LINES",
     "FORMATS",
     "PROJECT_UNIT",
     "UNITS",

@@ -118,7 +118,8 @@ def read_runs(path: str | os.PathLike[str], *, spec: InputSpec) -> list[Run]:
     readers: dict[str, Callable[[], list[Run]]] = {
         # an imported run file keeps its original format in source_format
         "run": lambda: [_tag(read_run(p), "run", override=True)],
-        "text": lambda: read_text(p, columns=spec.columns, delimiter=spec.delimiter),
+        "text": lambda: read_text(p, columns=spec.columns, delimiter=spec.delimiter,
+                                  bad_lines=spec.bad_lines),
         "candump": lambda: _candump(p, spec),
         "ulog": lambda: list(_module(fmt, "_ulog", p).read_ulog(p)),
         "dataflash": lambda: list(_module(fmt, "_dataflash", p).read_dataflash(p)),

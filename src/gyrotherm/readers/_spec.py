@@ -10,11 +10,17 @@ at least one), ``accel_x``, ``accel_y``, ``accel_z`` (optional), each with a
 unit from :data:`gyrotherm.readers._units.UNITS`; and two grouping roles without
 a unit, ``device`` (a device id column: one run per device) and ``run`` (a
 segment/session label column: one run per label). The unit is split off at the
-last ``:`` so column names may contain ``:`` themselves.
+last ``:`` so column names may contain ``:`` themselves. A file without a header
+names its columns by number, from 1 (``temperature=1:degC x=5:dps``).
+
+A log without time stamps (a serial capture printing samples at a fixed rate) has no
+``time`` role: the map then carries the nominal sample rate (``--rate-hz``), and each
+run's time is its row index / rate, recorded as nominal in its metadata.
 """
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -52,16 +58,28 @@ class ColumnRole:
 
 @dataclass(frozen=True)
 class ColumnMap:
-    """Roles → columns with units; at least time, temperature and one rate axis."""
+    """Roles → columns with units; at least temperature, one rate axis and time, or
+    instead of time the nominal sample rate ``rate_hz`` of a log without time stamps."""
 
     roles: tuple[ColumnRole, ...]
+    rate_hz: float | None = None
+    """Nominal sample rate (Hz) of a log without time stamps: time = row index / rate."""
 
     def __post_init__(self) -> None:
         have = [r.role for r in self.roles]
         dupes = sorted({r for r in have if have.count(r) > 1})
         if dupes:
             raise ConfigError(f"--columns: role(s) {dupes} given more than once")
-        missing = [r for r in ("time", "temperature") if r not in have]
+        if self.rate_hz is not None:
+            if not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
+                raise ConfigError(f"--rate-hz {self.rate_hz:g}: expected a sample rate > 0 Hz")
+            if "time" in have:
+                raise ConfigError(
+                    f"--rate-hz {self.rate_hz:g} with a time column "
+                    f"({self.column_of('time')!r}): give one or the other (--rate-hz is for "
+                    "logs without time stamps)")
+        required = ("temperature",) if self.rate_hz is not None else ("time", "temperature")
+        missing = [r for r in required if r not in have]
         if not any(r in have for r in RATE_ROLES):
             missing.append("x|y|z")
         if missing:
@@ -84,8 +102,9 @@ class ColumnMap:
         return " ".join(r.token() for r in self.roles)
 
 
-def parse_columns(tokens: Sequence[str]) -> ColumnMap:
-    """Parse ``--columns`` tokens (see the module docstring); ConfigError names the token."""
+def parse_columns(tokens: Sequence[str], *, rate_hz: float | None = None) -> ColumnMap:
+    """Parse ``--columns`` tokens (see the module docstring); ConfigError names the token.
+    ``rate_hz``: the nominal sample rate of a log without time stamps (no ``time``)."""
     roles = []
     for token in tokens:
         role, eq, rest = token.partition("=")
@@ -110,7 +129,7 @@ def parse_columns(tokens: Sequence[str]) -> ColumnMap:
             raise ConfigError(f"--columns {token!r}: unknown {kind} unit {unit_name!r}; "
                               f"known: {unit_names(kind)}")
         roles.append(ColumnRole(role, column, unit))
-    return ColumnMap(tuple(roles))
+    return ColumnMap(tuple(roles), rate_hz=rate_hz)
 
 
 @dataclass(frozen=True)
@@ -123,7 +142,8 @@ class InputSpec:
     (``,`` ``;`` tab, else whitespace), ``" "`` = any whitespace. ``dbc`` and
     ``signals``: DBC file and signal map of candump logs (None = the shipped
     DBC / the default map). ``imu_topic``, ``temperature_topic``: rosbag2/MCAP
-    topics (None = auto).
+    topics (None = auto). ``bad_lines``: what a damaged line of delimited text does,
+    ``"error"`` or ``"skip"`` (dropped and listed in the run's metadata).
     """
 
     format: str = "auto"
@@ -133,6 +153,7 @@ class InputSpec:
     signals: SignalMap | None = None
     imu_topic: str | None = None
     temperature_topic: str | None = None
+    bad_lines: str = "error"
 
 
 def load_signal_map(path: str | os.PathLike[str]) -> SignalMap:

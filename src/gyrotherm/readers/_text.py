@@ -1,14 +1,21 @@
 """Delimited text (CSV, TSV, ``;``, whitespace) with a column map → runs.
 
-* UTF-8, with or without a byte-order mark; lines starting with ``#`` and blank
-  lines are skipped anywhere; the first other line is the header (required).
+* UTF-8, with or without a byte-order mark; lines starting with ``#``, blank
+  lines and PuTTY's session-log banners are skipped anywhere; the first other line
+  is the header, unless it is all numbers: then the file has none and its columns
+  are named by number from 1 (a serial capture, :mod:`._textscan`).
 * Delimiter: given, or detected from the header: the most frequent of ``,``
   ``;`` and tab, else runs of whitespace. Fields may be double-quoted.
 * Columns: ``--columns`` (:func:`gyrotherm.readers.parse_columns`) or a
   recognised header (:mod:`gyrotherm.readers._headers`). Mapped cells must be
   finite numbers; other columns are ignored.
 * ``device`` / ``run`` roles split the rows into one run per value (in order of
-  first appearance); time must increase strictly within each run.
+  first appearance); time must increase strictly within each run. Without a time
+  column, the map's nominal rate gives time = row index / rate within each run
+  (metadata ``time_source``).
+* ``bad_lines="skip"``: a damaged line (wrong field count, a mapped cell that is not a
+  finite number) is dropped; each run's metadata ``dropped_lines`` lists the file's
+  (count, then line: reason).
 
 Errors are :class:`gyrotherm.RunFileError` naming file, line, column and problem,
 and for a header that does not fit, the columns found and the roles needed.
@@ -31,9 +38,20 @@ from gyrotherm.readers._textscan import Header, Table, find_header, labels, numb
 FloatArray = NDArray[np.float64]
 
 
+DROPPED_LISTED = 20
+"""Dropped lines listed by number and reason in the metadata (the count is always)."""
+
+
 def _column_map(path: Path, head: Header, wanted: ColumnMap | None,
                 ) -> tuple[ColumnMap, str]:
     header = head.fields
+    if wanted is None and not head.named:
+        shown = ", ".join(f"{i}: {v}" for i, v in enumerate(head.first, start=1))
+        raise RunFileError(
+            f"{path}: line {head.line + 1}: the file has no header (this line is numbers: "
+            f"{shown}): give the columns by number, from 1, with their units, and the time "
+            "as a column or, for a log without time stamps, its sample rate, e.g. --columns "
+            "temperature=<N>:degC x=<N>:dps y=<N>:dps z=<N>:dps --rate-hz <HZ>")
     if wanted is None:
         known = recognise(header, path.stem)
         if known is None:
@@ -46,6 +64,11 @@ def _column_map(path: Path, head: Header, wanted: ColumnMap | None,
     else:
         schema = "columns given"
     absent = [r.token() for r in wanted.roles if r.column not in header]
+    if absent and not head.named:
+        raise RunFileError(
+            f"{path}: line {head.line + 1}: --columns {' '.join(absent)}: no such column (the "
+            f"file has no header: its columns are numbered 1 to {len(header)}, "
+            f"{head.delimiter_name}-separated)")
     if absent:
         raise RunFileError(
             f"{path}: line {head.line}: --columns {' '.join(absent)}: no such column "
@@ -70,14 +93,21 @@ def _groups(table: Table, cmap: ColumnMap) -> tuple[list[str], list[tuple[str, .
     return roles, [tuple(str(v) for v in keys[i]) for i in firsts], rows
 
 
+def _dropped(table: Table) -> str:
+    shown = "; ".join(f"line {n}: {why}" for n, why in table.dropped[:DROPPED_LISTED])
+    more = len(table.dropped) - DROPPED_LISTED
+    return f"{len(table.dropped)}: {shown}" + (f"; and {more} more" if more > 0 else "")
+
+
 def read_text(path: str | Path, *, columns: ColumnMap | None = None,
-              delimiter: str | None = None) -> list[Run]:
+              delimiter: str | None = None, bad_lines: str = "error") -> list[Run]:
     """The runs in delimited text file ``path`` (see the module docstring)."""
     p = Path(path)
     head = find_header(p, delimiter)
     cmap, schema = _column_map(p, head, columns)
-    table = scan(p, head)
     measured = [r for r in cmap.roles if r.unit is not None]
+    table = scan(p, head, bad_lines=bad_lines,
+                 numeric=tuple(head.fields.index(r.column) for r in measured))
     raw = numbers(table, [r.column for r in measured])
     values: dict[str, FloatArray] = {}
     for r in measured:
@@ -93,13 +123,24 @@ def read_text(path: str | Path, *, columns: ColumnMap | None = None,
     base = {"format": "text", "schema": schema, "columns": cmap.tokens(),
             "delimiter": table.delimiter_name,
             **{f"unit_{r.role}": r.unit.name for r in measured if r.unit is not None}}
+    if not head.named:
+        base["header"] = "none (columns numbered from 1)"
+    if cmap.rate_hz is not None:
+        base["time_source"] = (f"nominal: row index / {cmap.rate_hz:g} Hz (the log has no time "
+                        "stamps; dropped lines are not counted)")
+    if table.dropped:
+        base["dropped_lines"] = _dropped(table)
     runs = []
     for instance, (key, rows) in enumerate(zip(keys, groups, strict=True)):
         label = dict(zip(roles, key, strict=True))
         meta = {**base, "device_id": label.get("device", ""), "instance": str(instance)}
         if "run" in label:
             meta["segment"] = label["run"]
-        t = values["time"][rows]
+        if cmap.rate_hz is None:
+            t = values["time"][rows]
+        else:
+            n = table.rows if isinstance(rows, slice) else len(rows)
+            t = np.arange(n, dtype=np.float64) / cmap.rate_hz
         steps = np.diff(t)
         if (steps <= 0).any():
             k = int(np.argmax(steps <= 0)) + 1

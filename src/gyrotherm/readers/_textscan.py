@@ -6,6 +6,20 @@ checks the field counts (a few hundred ns per line) and hashes it, and
 ``numpy.loadtxt`` (C) parses the mapped columns from the file itself. Only when
 that fails does a Python pass look for the first offending cell, to name its line
 and column.
+
+A serial capture (a terminal's log of what a board printed) differs from a logger's
+CSV in three ways, each handled here:
+
+* **no header**: the first data line is all numbers; its columns are then named by
+  their 1-based number (``"1"``, ``"2"``, …, :data:`NUMBERED`), and the field count is
+  the most common one over the first :data:`WIDTH_LINES` lines (a capture may start
+  mid-line);
+* **banner lines**: PuTTY writes ``=~=~=~=…= PuTTY log <date> <time> =~=…`` at the top
+  of each session it logs (:data:`PUTTY_BANNER`); skipped like comments;
+* **damaged lines**: a line cut short, two lines run together, a token garbled by a
+  dropped byte. By default the first is an error naming the line; with
+  ``bad_lines="skip"`` each such line is dropped and listed with its reason
+  (:attr:`Table.dropped`), so nothing is lost without a word.
 """
 
 from __future__ import annotations
@@ -25,6 +39,13 @@ from gyrotherm._errors import RunFileError
 FloatArray = NDArray[np.float64]
 DELIMITERS = (",", ";", "\t")
 NAMES = {",": "comma", ";": "semicolon", "\t": "tab", " ": "whitespace"}
+PUTTY_BANNER = "=~=~=~=~=~=~=~=~=~=~=~= PuTTY log "
+"""How a PuTTY session log's banner line starts (PuTTY's ``logging.c``)."""
+WIDTH_LINES = 200
+"""Lines of a headerless file whose most common field count is its width."""
+BAD_LINES = ("error", "skip")
+"""What a data line with the wrong field count or a mapped cell that is not a finite
+number does: stop with an error naming it, or be dropped and listed."""
 
 
 def detect_delimiter(header: str) -> str:
@@ -45,7 +66,22 @@ def split(line: str, delimiter: str) -> list[str]:
 
 def _skip(line: str) -> bool:
     s = line.strip()
+    return not s or s.startswith("#") or s.startswith(PUTTY_BANNER)
+
+
+def _comment(line: str) -> bool:
+    """Skipped by ``numpy.loadtxt`` too (blank or ``#``)."""
+    s = line.strip()
     return not s or s.startswith("#")
+
+
+def _all_numbers(fields: list[str]) -> bool:
+    try:
+        for f in fields:
+            float(f)
+    except ValueError:
+        return False
+    return bool(fields)
 
 
 @dataclass(frozen=True)
@@ -59,9 +95,15 @@ class Table:
     rows: int
     """Number of data rows."""
     skipped: NDArray[np.int64]
-    """Line numbers of the blank and comment lines after the header."""
+    """Line numbers of the lines after the header that are not data rows: blank,
+    comment and banner lines, and the ``dropped`` ones."""
     sha256: str
     """Of the file's bytes."""
+    dropped: tuple[tuple[int, str], ...] = ()
+    """(line number, reason) of each damaged line dropped (``bad_lines="skip"``)."""
+    plain: bool = True
+    """Every skipped line is blank or a ``#`` comment (``numpy.loadtxt`` can read the
+    file itself); else the data lines are handed to it one by one."""
 
     def line_of(self, row: int) -> int:
         """The file line number of data row ``row`` (0-based)."""
@@ -80,11 +122,16 @@ class Table:
 
 @dataclass(frozen=True)
 class Header:
-    """The header line: its number, fields and delimiter."""
+    """The header line: its number, fields and delimiter. A headerless file
+    (``named`` False): ``line`` is the line before the first data line and ``fields``
+    are the column numbers ``"1"`` … ``"<width>"``."""
 
     line: int
     fields: list[str]
     delimiter: str
+    named: bool = True
+    first: tuple[str, ...] = ()
+    """A headerless file's first data line, split (for messages)."""
 
     @property
     def delimiter_name(self) -> str:
@@ -108,38 +155,102 @@ def lines(path: Path) -> Iterator[tuple[int, str]]:
 
 
 def find_header(path: Path, delimiter: str | None) -> Header:
-    """The first line that is neither blank nor a comment, split by ``delimiter``
-    (None = :func:`detect_delimiter`)."""
+    """The first line that is neither blank nor a comment nor a banner, split by
+    ``delimiter`` (None = :func:`detect_delimiter`); when it is all numbers, the file
+    has no header (:class:`Header`, module docstring)."""
+    first: tuple[int, list[str], str] | None = None
+    counts: dict[int, int] = {}
+    seen = 0
     for line_no, line in lines(path):
-        if not _skip(line):
+        if _skip(line):
+            continue
+        if first is None:
             delim = delimiter or detect_delimiter(line)
-            return Header(line_no, split(line, delim), delim)
-    raise RunFileError(f"{path}: no header line (the file is empty or all comments)")
+            fields = split(line, delim)
+            if not _all_numbers(fields):
+                return Header(line_no, fields, delim)
+            first = (line_no, fields, delim)
+        n = len(split(line, first[2]))
+        counts[n] = counts.get(n, 0) + 1
+        seen += 1
+        if seen >= WIDTH_LINES:
+            break
+    if first is None:
+        raise RunFileError(f"{path}: no header line (the file is empty or all comments)")
+    width = max(counts, key=lambda n: (counts[n], n))
+    return Header(first[0] - 1, [str(i) for i in range(1, width + 1)], first[2], named=False,
+                  first=tuple(first[1]))
 
 
-def scan(path: Path, head: Header) -> Table:
-    """Check every data line's field count; the table of the data after ``head``."""
+def scan(path: Path, head: Header, *, bad_lines: str = "error",
+         numeric: tuple[int, ...] = ()) -> Table:
+    """Check every data line's field count; the table of the data after ``head``.
+    ``bad_lines="skip"``: a line with the wrong field count, or whose columns
+    ``numeric`` (0-based) are not all finite numbers, is dropped with its reason."""
+    if bad_lines not in BAD_LINES:
+        raise ValueError(f"bad_lines = {bad_lines!r}; known: {', '.join(BAD_LINES)}")
     header, delim = head.fields, head.delimiter
     width, commas = len(header), len(header) - 1
+    skip = bad_lines == "skip"
     skipped = array("q")
+    dropped: list[tuple[int, str]] = []
+    plain = True
     rows = 0
     for line_no, line in lines(path):
         if line_no <= head.line:
             continue
         if _skip(line):
             skipped.append(line_no)
+            plain = plain and _comment(line)
             continue
-        rows += 1
-        if delim != " " and '"' not in line and line.count(delim) == commas:
+        if not skip and delim != " " and '"' not in line and line.count(delim) == commas:
+            rows += 1
             continue
-        got = len(split(line, delim))
-        if got != width:
-            raise RunFileError(f"{path}: line {line_no}: expected {width} fields "
-                               f"({head.delimiter_name}-separated), got {got}")
+        fields = split(line, delim)
+        why = (f"expected {width} fields ({head.delimiter_name}-separated), got {len(fields)}"
+               if len(fields) != width else (_bad_cell(fields, numeric, header, delim)
+                                             if skip else None))
+        if why is None:
+            rows += 1
+        elif skip:
+            skipped.append(line_no)
+            dropped.append((line_no, why))
+            plain = False
+        else:
+            raise RunFileError(f"{path}: line {line_no}: {why} (a serial capture with damaged "
+                               "lines? --bad-lines skip drops them and lists them in the run's "
+                               "metadata)")
     if not rows:
         raise RunFileError(f"{path}: line {head.line + 1}: no data rows after the header")
     return Table(path, header, head.line, delim, rows, np.frombuffer(skipped, np.int64),
-                 _sha256(path))
+                 _sha256(path), tuple(dropped), plain)
+
+
+def _bad_cell(fields: list[str], numeric: tuple[int, ...], header: list[str],
+              delimiter: str) -> str | None:
+    """Why one of the ``numeric`` cells of a line is not a finite number, else None."""
+    for i in numeric:
+        try:
+            value = _number(fields[i], delimiter)
+        except ValueError:
+            return f"column {header[i]!r}: {fields[i]!r} is not a number"
+        if not np.isfinite(value):
+            return f"column {header[i]!r}: {fields[i]!r} is not a finite number"
+    return None
+
+
+def data_lines(table: Table) -> Iterator[tuple[int, str]]:
+    """``(line number, text)`` of the table's data rows, in order."""
+    skipped = iter(table.skipped.tolist())
+    nxt = next(skipped, None)
+    for line_no, line in lines(table.path):
+        if line_no <= table.header_line:
+            continue
+        while nxt is not None and nxt < line_no:
+            nxt = next(skipped, None)
+        if nxt == line_no or _skip(line):
+            continue
+        yield line_no, line
 
 
 def _sha256(path: Path) -> str:
@@ -151,10 +262,14 @@ def _sha256(path: Path) -> str:
 
 
 def _loadtxt(table: Table, columns: list[int], dtype: type) -> NDArray[np.generic] | None:
+    source: Path | Iterator[str] = table.path
+    if not table.plain:  # banner or dropped lines: hand loadtxt the data rows alone
+        source = (line for _, line in data_lines(table))
     try:
         data: NDArray[np.generic] = np.loadtxt(
-            table.path, delimiter=None if table.delimiter == " " else table.delimiter,
-            usecols=columns, comments="#", dtype=dtype, ndmin=2, skiprows=table.header_line,
+            source, delimiter=None if table.delimiter == " " else table.delimiter,
+            usecols=columns, comments="#", dtype=dtype, ndmin=2,
+            skiprows=table.header_line if table.plain else 0,
             encoding="utf-8-sig", quotechar=None if table.delimiter == " " else '"')
     except ValueError:
         return None
@@ -194,9 +309,7 @@ def _python_numbers(table: Table, columns: list[str], index: list[int]) -> Float
     """What loadtxt refused, cell by cell (decimal commas accepted, see
     :func:`_number`): the first bad cell is an error."""
     out = array("d")
-    for line_no, line in lines(table.path):
-        if line_no <= table.header_line or _skip(line):
-            continue
+    for line_no, line in data_lines(table):
         fields = split(line, table.delimiter)
         for j, i in enumerate(index):
             try:
