@@ -36,6 +36,13 @@ Scoring against the injected truth:
   parameter (the hidden-effect tests' list); for the wide hysteresis the
   amplitude, for the warm-ups the amplitude at power-on (A₁ + A₂; A/(1 + e^(−t½/s))).
 
+* **the diagnosis' floor** (:mod:`gyrotherm.analysis._floor`, a statement every diagnosis
+  makes: below a held-out gain F_v a structure in v is not resolvable at this readout):
+  a shape missed whose oracle gain (:mod:`readout_oracle`) is below the stated floor of its
+  variable (a catalogued name's: the selection margin) was declared by it ("missed below
+  the floor"); one found below it says the floor overstates what the readout hides. Both
+  are reported in the oracle table beside, not merged into, the verdicts.
+
 Intervals: Wilson 95 % for the found rate and for the share of diagnoses with a
 false alarm; seeded percentile bootstrap (2000 resamples) for the median
 parameter error. Development seeds (:data:`DEV_SEEDS`) and evaluation seeds

@@ -31,3 +31,27 @@ def test_export_rereads_csv_runs_with_the_recorded_column_map(tmp_path: Path) ->
         # the logs' bias law is quadratic in T (userdatakit.LAW), noise 0.002 °/s: the
         # autopilot's cubic (plus ArduPilot's boot-time offset) leaves about the noise
         assert e["cubic_rms_dps"] < 0.01 < e["raw_rms_dps"], axis
+
+
+def test_a_serial_captures_options_are_recorded_and_the_command_line_wins() -> None:
+    import argparse
+
+    from gyrotherm.cli._inputs import recorded_options, with_recorded_options
+
+    keys = ("format", "columns", "delimiter", "dbc", "signals", "imu_topic",
+            "temperature_topic", "rate_hz", "bad_lines")
+    given = argparse.Namespace(**dict.fromkeys(keys), runs=["cap.csv"])
+    given.format, given.columns = "auto", ["temperature=1:degC", "x=5:dps"]
+    given.rate_hz, given.bad_lines = 50.0, "skip"
+    recorded = json.loads(json.dumps(recorded_options(given)))
+    assert recorded == {"columns": ["temperature=1:degC", "x=5:dps"], "rate_hz": 50.0,
+                        "bad_lines": "skip"}
+    bare = argparse.Namespace(**dict.fromkeys(keys), runs=["cap.csv"])
+    bare.format = "auto"
+    merged = with_recorded_options(bare, recorded)
+    assert (merged.rate_hz, merged.bad_lines, merged.columns) == (
+        50.0, "skip", ["temperature=1:degC", "x=5:dps"])
+    # an explicit --bad-lines error on the command line is not overridden by the record
+    explicit = argparse.Namespace(**vars(bare))
+    explicit.bad_lines = "error"
+    assert with_recorded_options(explicit, recorded).bad_lines == "error"

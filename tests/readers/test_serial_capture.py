@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from gyrotherm._errors import ConfigError, RunFileError
+from gyrotherm.codecs import Run
 from gyrotherm.readers import InputSpec, parse_columns, read_runs
 
 DATA = Path(__file__).parent / "data" / "putty-bmi270"
@@ -79,8 +80,8 @@ def test_a_garbled_token_in_a_mapped_column_drops_its_line_only_when_mapped() ->
 
 def test_no_header_without_columns_shows_the_first_line_by_column_number() -> None:
     with pytest.raises(RunFileError, match=r"cold_head.csv: line 2: the file has no header "
-                       r"\(this line is numbers: 1: 13.255859, 2: 0.075, .* 7: -0.18\): give "
-                       r"the columns by number"):
+                       r"\(its lines are numbers, e.g. 1: 13.255859, 2: 0.075, .* 7: -0.18\): "
+                       r"give the columns by number"):
         read_runs(DATA / "cold_head.csv", spec=InputSpec())
     with pytest.raises(RunFileError, match=r"--columns x=8:dps: no such column \(the file has "
                        r"no header: its columns are numbered 1 to 7"):
@@ -105,6 +106,47 @@ def test_whitespace_capture_with_a_time_column(tmp_path: Path) -> None:
     (run,) = read_runs(p, spec=spec)
     np.testing.assert_allclose(run.time_s, [1.0, 1.02, 1.04])
     np.testing.assert_allclose(run.rates_dps["z"], [0.10, 0.12, 0.11])
+
+
+def _one(tmp_path: Path, text: str, columns: str, **spec: object) -> Run:
+    p = tmp_path / "capture.csv"
+    p.write_text(text, encoding="utf-8")
+    (run,) = read_runs(p, spec=InputSpec(columns=parse_columns(columns.split(), rate_hz=10.0),
+                                         **spec))  # type: ignore[arg-type]
+    return run
+
+
+def test_what_makes_a_first_line_data_and_not_a_header(tmp_path: Path) -> None:
+    # a trailing delimiter (an empty last field) is still a line of numbers
+    run = _one(tmp_path, "25.0,0.1,0.2,\n25.1,0.2,0.3,\n", "temperature=1:degC x=3:dps")
+    np.testing.assert_array_equal(run.rates_dps["x"], [0.2, 0.3])
+    # a damaged first data line (mostly numbers) is data, dropped with --bad-lines skip
+    run = _one(tmp_path, "25.0,0.1-0.2,0.3\n25.1,0.2,0.4\n25.2,0.3,0.5\n",
+               "temperature=1:degC x=2:dps", bad_lines="skip")
+    np.testing.assert_array_equal(run.temperature_c, [25.1, 25.2])
+    assert run.metadata["dropped_lines"] == "1: line 1: column '2': '0.1-0.2' is not a number"
+    # a capture starting with a one-field fragment: the delimiter comes from the lines after
+    run = _one(tmp_path, "-0.06\n25.0,0.1,0.2\n25.1,0.2,0.3\n",
+               "temperature=1:degC z=3:dps", bad_lines="skip")
+    np.testing.assert_array_equal(run.rates_dps["z"], [0.2, 0.3])
+    assert run.metadata["delimiter"] == "comma"
+    # integer labels 0..n-1 (a dataframe without column names) are a header, not data
+    p = tmp_path / "frame.csv"
+    p.write_text("0,1,2\n1.0,25.0,0.1\n2.0,25.1,0.2\n", encoding="utf-8")
+    (run,) = read_runs(p, spec=InputSpec(columns=parse_columns(
+        "time=0:s temperature=1:degC x=2:dps".split())))
+    np.testing.assert_array_equal(run.time_s, [1.0, 2.0])
+
+
+def test_a_blank_group_label_is_a_damaged_line(tmp_path: Path) -> None:
+    text = "a,25.0,0.1\n,25.1,0.2\na,25.2,0.3\nb,30.0,0.4\n"
+    p = tmp_path / "g.csv"
+    p.write_text(text, encoding="utf-8")
+    spec = InputSpec(columns=parse_columns("device=1 temperature=2:degC x=3:dps".split(),
+                                           rate_hz=10.0), bad_lines="skip")
+    runs = read_runs(p, spec=spec)
+    assert [(r.metadata["device_id"], len(r)) for r in runs] == [("a", 2), ("b", 1)]
+    assert runs[0].metadata["dropped_lines"] == "1: line 2: column '1' is blank"
 
 
 @pytest.mark.skipif(not SHARED.is_dir(), reason="shared measured data not present")

@@ -39,7 +39,7 @@ def add_input_options(parser: argparse.ArgumentParser) -> None:
                    help="nominal sample rate of delimited text without time stamps (a "
                    "serial capture): time = row index / HZ, recorded as nominal; no time "
                    "column then (default: a time column)")
-    g.add_argument("--bad-lines", choices=BAD_LINES, default="error",
+    g.add_argument("--bad-lines", choices=BAD_LINES,
                    help="a damaged line of delimited text (wrong field count, a mapped cell "
                    "not a finite number): stop with an error naming it, or skip it (each "
                    "run's metadata lists the lines dropped and why) (default error)")
@@ -77,7 +77,7 @@ def spec_from_args(args: argparse.Namespace) -> InputSpec:
         signals=load_signal_map(signals) if signals else None,
         imu_topic=getattr(args, "imu_topic", None),
         temperature_topic=getattr(args, "temperature_topic", None),
-        bad_lines=getattr(args, "bad_lines", "error"),
+        bad_lines=getattr(args, "bad_lines", None) or "error",
     )
 
 
@@ -92,7 +92,7 @@ def recorded_options(args: argparse.Namespace) -> dict[str, object]:
     out: dict[str, object] = {}
     for key in _OPTION_KEYS:
         value = getattr(args, key, None)
-        if value is None or (key, value) in (("format", "auto"), ("bad_lines", "error")):
+        if value is None or (key == "format" and value == "auto"):
             continue
         out[key] = str(Path(value).resolve()) if key in ("dbc", "signals") else value
     return out
@@ -103,7 +103,7 @@ def with_recorded_options(args: argparse.Namespace,
     """``args`` with the input options a calibration recorded filled in where the
     command line gave none (the command line wins)."""
     if not isinstance(recorded, dict) or any(
-            getattr(args, k, None) not in (None, "auto", "error") for k in _OPTION_KEYS):
+            getattr(args, k, None) not in (None, "auto") for k in _OPTION_KEYS):
         return args
     merged = argparse.Namespace(**vars(args))
     for key in _OPTION_KEYS:

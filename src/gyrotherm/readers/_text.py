@@ -14,8 +14,8 @@
   column, the map's nominal rate gives time = row index / rate within each run
   (metadata ``time_source``).
 * ``bad_lines="skip"``: a damaged line (wrong field count, a mapped cell that is not a
-  finite number) is dropped; each run's metadata ``dropped_lines`` lists the file's
-  (count, then line: reason).
+  finite number, a blank device/run cell) is dropped; each run's metadata
+  ``dropped_lines`` lists the file's (count, then line: reason).
 
 Errors are :class:`gyrotherm.RunFileError` naming file, line, column and problem,
 and for a header that does not fit, the columns found and the roles needed.
@@ -48,8 +48,8 @@ def _column_map(path: Path, head: Header, wanted: ColumnMap | None,
     if wanted is None and not head.named:
         shown = ", ".join(f"{i}: {v}" for i, v in enumerate(head.first, start=1))
         raise RunFileError(
-            f"{path}: line {head.line + 1}: the file has no header (this line is numbers: "
-            f"{shown}): give the columns by number, from 1, with their units, and the time "
+            f"{path}: line {head.line + 1}: the file has no header (its lines are numbers, "
+            f"e.g. {shown}): give the columns by number, from 1, with their units, and the time "
             "as a column or, for a log without time stamps, its sample rate, e.g. --columns "
             "temperature=<N>:degC x=<N>:dps y=<N>:dps z=<N>:dps --rate-hz <HZ>")
     if wanted is None:
@@ -107,7 +107,9 @@ def read_text(path: str | Path, *, columns: ColumnMap | None = None,
     cmap, schema = _column_map(p, head, columns)
     measured = [r for r in cmap.roles if r.unit is not None]
     table = scan(p, head, bad_lines=bad_lines,
-                 numeric=tuple(head.fields.index(r.column) for r in measured))
+                 numeric=tuple(head.fields.index(r.column) for r in measured),
+                 labelled=tuple(head.fields.index(cmap.column_of(g)) for g in GROUP_ROLES
+                                if cmap.get(g) is not None))
     raw = numbers(table, [r.column for r in measured])
     values: dict[str, FloatArray] = {}
     for r in measured:

@@ -75,15 +75,6 @@ def _comment(line: str) -> bool:
     return not s or s.startswith("#")
 
 
-def _all_numbers(fields: list[str]) -> bool:
-    try:
-        for f in fields:
-            float(f)
-    except ValueError:
-        return False
-    return bool(fields)
-
-
 @dataclass(frozen=True)
 class Table:
     """A delimited text file's header and the location of its data rows."""
@@ -154,39 +145,69 @@ def lines(path: Path) -> Iterator[tuple[int, str]]:
         raise RunFileError(f"{path}: cannot read: {exc.strerror}") from exc
 
 
+def _numeric_share(fields: list[str]) -> float:
+    """The share of the non-empty fields that are numbers (0 for none)."""
+    cells = [f for f in fields if f]
+    if not cells:
+        return 0.0
+    count = 0
+    for f in cells:
+        try:
+            float(f)
+        except ValueError:
+            continue
+        count += 1
+    return count / len(cells)
+
+
+def _integer_labels(fields: list[str]) -> bool:
+    """``0 1 … n−1`` or ``1 2 … n``: the column labels a dataframe writes when its
+    columns have no names (``pandas.DataFrame.to_csv`` of a numpy array)."""
+    return fields in ([str(i) for i in range(len(fields))],
+                      [str(i) for i in range(1, len(fields) + 1)])
+
+
 def find_header(path: Path, delimiter: str | None) -> Header:
     """The first line that is neither blank nor a comment nor a banner, split by
-    ``delimiter`` (None = :func:`detect_delimiter`); when it is all numbers, the file
-    has no header (:class:`Header`, module docstring)."""
-    first: tuple[int, list[str], str] | None = None
-    counts: dict[int, int] = {}
-    seen = 0
+    ``delimiter`` (None = :func:`detect_delimiter`). It is the header unless at least
+    half of its fields are numbers and they are not the labels ``0…n−1``/``1…n``
+    (a damaged first data line is still data); then the file has none
+    (:class:`Header`, module docstring): its delimiter is detected over the first
+    :data:`WIDTH_LINES` lines when the first has none (a capture may start with a
+    one-field fragment), and its width is their most common field count."""
+    sample: list[tuple[int, str]] = []
     for line_no, line in lines(path):
         if _skip(line):
             continue
-        if first is None:
+        if not sample:
             delim = delimiter or detect_delimiter(line)
             fields = split(line, delim)
-            if not _all_numbers(fields):
+            if _numeric_share(fields) < 0.5 or _integer_labels(fields):
                 return Header(line_no, fields, delim)
-            first = (line_no, fields, delim)
-        n = len(split(line, first[2]))
-        counts[n] = counts.get(n, 0) + 1
-        seen += 1
-        if seen >= WIDTH_LINES:
+        sample.append((line_no, line))
+        if len(sample) >= WIDTH_LINES:
             break
-    if first is None:
+    if not sample:
         raise RunFileError(f"{path}: no header line (the file is empty or all comments)")
+    delim = delimiter or detect_delimiter(sample[0][1])
+    if delimiter is None and delim == " " and not sample[0][1].strip().count(" "):
+        delim = detect_delimiter("".join(text for _, text in sample))
+    split_lines = [split(text, delim) for _, text in sample]
+    counts: dict[int, int] = {}
+    for fields in split_lines:
+        counts[len(fields)] = counts.get(len(fields), 0) + 1
     width = max(counts, key=lambda n: (counts[n], n))
-    return Header(first[0] - 1, [str(i) for i in range(1, width + 1)], first[2], named=False,
-                  first=tuple(first[1]))
+    shown = next(f for f in split_lines if len(f) == width)
+    return Header(sample[0][0] - 1, [str(i) for i in range(1, width + 1)], delim, named=False,
+                  first=tuple(shown))
 
 
 def scan(path: Path, head: Header, *, bad_lines: str = "error",
-         numeric: tuple[int, ...] = ()) -> Table:
+         numeric: tuple[int, ...] = (), labelled: tuple[int, ...] = ()) -> Table:
     """Check every data line's field count; the table of the data after ``head``.
-    ``bad_lines="skip"``: a line with the wrong field count, or whose columns
-    ``numeric`` (0-based) are not all finite numbers, is dropped with its reason."""
+    ``bad_lines="skip"``: a line with the wrong field count, whose columns ``numeric``
+    (0-based) are not all finite numbers, or whose grouping columns ``labelled`` are
+    blank, is dropped with its reason."""
     if bad_lines not in BAD_LINES:
         raise ValueError(f"bad_lines = {bad_lines!r}; known: {', '.join(BAD_LINES)}")
     header, delim = head.fields, head.delimiter
@@ -208,8 +229,8 @@ def scan(path: Path, head: Header, *, bad_lines: str = "error",
             continue
         fields = split(line, delim)
         why = (f"expected {width} fields ({head.delimiter_name}-separated), got {len(fields)}"
-               if len(fields) != width else (_bad_cell(fields, numeric, header, delim)
-                                             if skip else None))
+               if len(fields) != width else (_bad_cell(fields, numeric, labelled, header,
+                                                       delim) if skip else None))
         if why is None:
             rows += 1
         elif skip:
@@ -226,9 +247,13 @@ def scan(path: Path, head: Header, *, bad_lines: str = "error",
                  _sha256(path), tuple(dropped), plain)
 
 
-def _bad_cell(fields: list[str], numeric: tuple[int, ...], header: list[str],
-              delimiter: str) -> str | None:
-    """Why one of the ``numeric`` cells of a line is not a finite number, else None."""
+def _bad_cell(fields: list[str], numeric: tuple[int, ...], labelled: tuple[int, ...],
+              header: list[str], delimiter: str) -> str | None:
+    """Why one of the ``numeric`` cells of a line is not a finite number, or one of the
+    ``labelled`` ones is blank, else None."""
+    for i in labelled:
+        if not fields[i]:
+            return f"column {header[i]!r} is blank"
     for i in numeric:
         try:
             value = _number(fields[i], delimiter)
