@@ -31,14 +31,17 @@ from gyrotherm.compensation import Scaling
 
 
 def heldout_gain(runs: Sequence[Prepared], scaling: Scaling,
-                 column: Sequence[np.ndarray]) -> float:
+                 column: Sequence[np.ndarray], *,
+                 effects: Mapping[str, float] | None = None) -> float:
     """Paper model's held-out RMS over that of the paper model plus ``column`` (one
-    array per run), one offset per run, leave-one-run-out (≥ 2 runs)."""
+    array per run), one offset per run, leave-one-run-out (≥ 2 runs). ``effects``
+    (name → nonlinear parameter): the catalogued effects added to the paper model in
+    both, e.g. a diagnosis' chosen model."""
     rms = []
     for extra in (False, True):
         mats = []
         for p, c in zip(runs, column, strict=True):
-            _, x = design(p.time_s, p.temperature_c, p.delta_t_c, scaling, {})
+            _, x = design(p.time_s, p.temperature_c, p.delta_t_c, scaling, effects or {})
             if extra:
                 x = np.column_stack([x, c])
             z = x - x.mean(axis=0)
@@ -52,11 +55,15 @@ def heldout_gain(runs: Sequence[Prepared], scaling: Scaling,
 
 
 def oracle_gain(shapes: Mapping[str, Mapping[str, float]], runs: Sequence[Prepared],
-                scaling: Scaling) -> float | None:
+                scaling: Scaling, *, effects: Mapping[str, float] | None = None
+                ) -> float | None:
     """The oracle gain (module docstring) of ``shapes`` (name → true parameters) on the
-    diagnosis' prepared ``runs``; None when nothing off-catalogue was injected."""
+    diagnosis' prepared ``runs``; None when nothing off-catalogue was injected.
+    ``effects``: over the paper model with these catalogued effects instead (the gain
+    the shape has left over a diagnosis' chosen model, which its detection floor is
+    relative to)."""
     if not shapes:
         return None
     column = [sum((shape_bias(name, params, p.time_s, p.temperature_c, p.delta_t_c)
                    for name, params in shapes.items()), np.zeros(len(p))) for p in runs]
-    return heldout_gain(runs, scaling, column)
+    return heldout_gain(runs, scaling, column, effects=effects)

@@ -11,7 +11,10 @@ best possible held-out gain is below
     F_v = (1 + margin) · max(1, N_v)
 
 is not reported: at this readout it is not resolvable, and the diagnosis says so for
-every structure below F_v at once instead of naming none. In amplitude: a structure of
+every structure below F_v at once instead of naming none. (The gain a structure is
+admitted at is over the model the search tried it on; when it makes a catalogued effect
+redundant, that effect is dropped and its reported gain, over the refitted model, can be
+lower than F_v.) In amplitude: a structure of
 RMS s (°/s) on top of residuals of held-out RMS R gains about √(1 + s²/R²), so F_v is
 a structure of about R·√(F_v² − 1) °/s RMS (approximate: held out, the structure's fit
 costs some of it).
@@ -22,8 +25,9 @@ their own readout replays (:mod:`._resolve`), stated in their verdicts when sele
 
 The floor is a claim the sweep checks against the truth (``scripts/generalisation_sweep.py``):
 an injected structure the diagnosis missed whose oracle gain (its true shape fitted,
-``scripts/readout_oracle.py``) is below F_v was declared by the floor; one missed above F_v
-is a plain miss; one found below F_v means the floor overstates what the readout hides.
+``scripts/readout_oracle.py``), over the paper model and over the chosen model both, is
+below F_v was declared by the floor; one missed above F_v is a plain miss; one reported in
+its variable below F_v means the floor overstates what the readout hides.
 """
 
 from __future__ import annotations
