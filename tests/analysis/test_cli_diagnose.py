@@ -22,7 +22,8 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def test_cli_writes_schema_json_and_report(tmp_path: Path) -> None:
+def test_cli_writes_schema_json_and_report(tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
     runs, _ = synth_runs(SynthConfig(duration_s=2400.0, rate_hz=5.0,
                                      effects={"drift": {"slope_dps_per_h": 0.15}}),
                          n_runs=3, seed=9)
@@ -61,6 +62,16 @@ def test_cli_writes_schema_json_and_report(tmp_path: Path) -> None:
     for name in ("report.md", "measured_vs_simulated.png", "residual_vs_temperature.png",
                  "residual_vs_time.png", "before_after.png"):
         assert (tmp_path / "rep" / name).stat().st_size > 0
+    # the detection floor: in the JSON, the report and the summary line, the same figures
+    floors = data["detection_floor"]
+    assert [f["variable"] for f in floors] == ["temperature_c", "delta_t_c",
+                                               "time_since_power_on_s"]
+    assert all(f["gain"] >= 1.10 - 1e-12 for f in floors)
+    err = capsys.readouterr().err
+    said = ", ".join(f"×{f['gain']:.2f} in {f['variable']}" for f in floors)
+    assert f"diagnose: not resolvable at this readout: a structure gaining less than {said}" \
+        in err
+    assert "## Detection floor" in report
 
 
 def test_cli_errors_name_the_problem(tmp_path: Path,

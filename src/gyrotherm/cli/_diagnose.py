@@ -105,6 +105,10 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         print(f"diagnose: found {found}; extended {result.extended.name}: held-out RMS "
               f"{result.baseline_heldout_rms_dps:.4g} → {result.extended_heldout_rms_dps:.4g} °/s "
               f"(gain {result.gain:.2f})", file=sys.stderr)
+        if result.floors:  # what it could not have seen (analysis/_floor.py)
+            floors = ", ".join(f"×{f.gain:.2f} in {f.variable}" for f in result.floors)
+            print(f"diagnose: not resolvable at this readout: a structure gaining less than "
+                  f"{floors} (held out, over {result.extended.name})", file=sys.stderr)
     return loaded.exit_status  # 2 when a log failed (diagnosed on the others)
 
 
