@@ -4,12 +4,25 @@ from __future__ import annotations
 
 import importlib.util
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
 import pytest
 
 from gyrotherm.analysis import SynthConfig
+from gyrotherm.analysis._prep import (
+    Readout,
+    characterise,
+    estimator_for,
+    fit_tau,
+    prepare,
+    with_tau,
+)
+from gyrotherm.analysis._score import Selector
+from gyrotherm.codecs import Run
+from gyrotherm.compensation import Scaling
 
 SCRIPTS = Path(__file__).resolve().parents[2] / "scripts"
 
@@ -23,6 +36,21 @@ def load_script(name: str) -> ModuleType:
     sys.modules[name] = module
     spec.loader.exec_module(module)
     return module
+
+
+def prepared_selector(runs: Sequence[Run], axis: str = "x"
+                      ) -> tuple[Selector, list[Readout]]:
+    """The selector ``diagnose`` builds on ``runs`` (readouts characterised, the estimator
+    they call for, τ fitted from the chamber column), and the readouts."""
+    readouts = [characterise(r, axis) for r in runs]
+    est = estimator_for(readouts)
+    prepared = [prepare(r, axis, est) for r in runs]
+    tau = fit_tau(prepared)
+    assert tau is not None
+    prepared = [with_tau(p, tau[0]) for p in prepared]
+    return Selector(prepared, Scaling.from_data(
+        np.concatenate([p.temperature_c for p in prepared]),
+        np.concatenate([p.delta_t_c for p in prepared]))), readouts
 
 
 CORNER_CFG = SynthConfig(duration_s=6000.0, rate_hz=10.0, readout_lsb_c=1.0,

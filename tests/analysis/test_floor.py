@@ -9,21 +9,17 @@ import math
 from pathlib import Path
 from types import ModuleType
 
-import numpy as np
 import pytest
 
 from gyrotherm.analysis import SynthConfig, diagnose
 from gyrotherm.analysis._diagnose import Diagnosis
 from gyrotherm.analysis._null_replay import replay_spline, replay_splines
-from gyrotherm.analysis._prep import characterise, estimator_for, fit_tau, prepare, with_tau
 from gyrotherm.analysis._report import write_report
 from gyrotherm.analysis._resolve import lag_limit
-from gyrotherm.analysis._score import Selector
 from gyrotherm.analysis._unexplained import VARIABLES
 from gyrotherm.analysis.synth._variants import variant_runs
-from gyrotherm.compensation import Scaling
 
-from .conftest import CORNER_CFG, load_script
+from .conftest import CORNER_CFG, load_script, prepared_selector
 
 DEV = 31
 FINE_CFG = SynthConfig(duration_s=6000.0, rate_hz=10.0)  # the sweep's reference readout
@@ -104,15 +100,8 @@ def test_one_replay_serves_every_variable() -> None:
     # replay_splines on the three variables gives each the gains replay_spline gives it
     # alone (the replays depend on the seed, not on the variable)
     runs, _ = variant_runs(CORNER_CFG, n_runs=3, seed=DEV)
-    readouts = [characterise(r, "x") for r in runs]
-    est = estimator_for(readouts)
-    prepared = [prepare(r, "x", est) for r in runs]
-    fit = fit_tau(prepared)
-    assert fit is not None
-    prepared = [with_tau(p, fit[0]) for p in prepared]
-    sel = Selector(prepared, Scaling.from_data(np.concatenate([p.temperature_c for p in prepared]),
-                                               np.concatenate([p.delta_t_c for p in prepared])))
-    crossing = lag_limit(readouts, prepared).lsb_crossing_s
+    sel, readouts = prepared_selector(runs)
+    crossing = lag_limit(readouts, sel.runs).lsb_crossing_s
     every, _ = replay_splines(sel, {}, readouts, crossing, VARIABLES, seed=3)
     for v in VARIABLES:
         alone, _ = replay_spline(sel, {}, readouts, crossing, v, seed=3)

@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 
 from gyrotherm.analysis import SynthConfig, diagnose
-from gyrotherm.analysis._prep import characterise, estimator_for, fit_tau, prepare, with_tau
 from gyrotherm.analysis._score import Selector
 from gyrotherm.analysis._separable import (
     HOLD_MIN_S,
@@ -27,23 +26,14 @@ from gyrotherm.analysis._separable import (
 )
 from gyrotherm.analysis.synth._variants import variant_runs
 from gyrotherm.codecs import Run
-from gyrotherm.compensation import Scaling
 
-from .conftest import CORNER_CFG
+from .conftest import CORNER_CFG, prepared_selector
 
 CFG = SynthConfig(duration_s=6000.0, rate_hz=10.0, readout_lsb_c=0.125, readout_period_s=1.28)
 
 
 def _selector(runs: Sequence[Run]) -> Selector:
-    readouts = [characterise(r, "x") for r in runs]
-    est = estimator_for(readouts)
-    prepared = [prepare(r, "x", est) for r in runs]
-    tau = fit_tau(prepared)
-    assert tau is not None
-    prepared = [with_tau(p, tau[0]) for p in prepared]
-    return Selector(prepared, Scaling.from_data(
-        np.concatenate([p.temperature_c for p in prepared]),
-        np.concatenate([p.delta_t_c for p in prepared])))
+    return prepared_selector(runs)[0]
 
 
 def _warmup_and_drift(sel: Selector) -> Mapping[str, float]:

@@ -14,10 +14,9 @@ is not reported: at this readout it is not resolvable, and the diagnosis says so
 every structure below F_v at once instead of naming none. (The gain a structure is
 admitted at is over the model the search tried it on; when it makes a catalogued effect
 redundant, that effect is dropped and its reported gain, over the refitted model, can be
-lower than F_v.) In amplitude: a structure of
-RMS s (°/s) on top of residuals of held-out RMS R gains about √(1 + s²/R²), so F_v is
-a structure of about R·√(F_v² − 1) °/s RMS (approximate: held out, the structure's fit
-costs some of it).
+lower than F_v.) In amplitude: a structure of RMS s (°/s) on top of residuals of
+held-out RMS R gains about √(1 + s²/R²), so F_v is a structure of about R·√(F_v² − 1)
+°/s RMS (approximate: held out, the structure's fit costs some of it).
 
 A catalogued effect is selected at a held-out gain of at least 1 + margin over the model
 (:mod:`._select`), the same floor without replays; a lag and a hysteresis must also pass
@@ -59,12 +58,6 @@ class Floor:
     def to_dict(self) -> dict[str, Any]:
         return {"variable": self.variable, "gain": self.gain, "null_gain": self.null_gain,
                 "rms_dps": self.rms_dps, "margin": self.margin}
-
-    def text(self) -> str:
-        return (f"a structure in {self.variable} gaining less than ×{self.gain:.3f} held out "
-                f"over the model (about {self.rms_dps:.2g} °/s RMS) is not resolvable at this "
-                f"readout: readout replays without one give a spline in it "
-                f"×{self.null_gain:.3f}, and the margin is ×{1.0 + self.margin:.2f}")
 
 
 def detection_floors(

@@ -2,8 +2,9 @@
 
 * UTF-8, with or without a byte-order mark; lines starting with ``#``, blank
   lines and PuTTY's session-log banners are skipped anywhere; the first other line
-  is the header, unless it is all numbers: then the file has none and its columns
-  are named by number from 1 (a serial capture, :mod:`._textscan`).
+  is the header, unless at least half of it is numbers: then the file has none and
+  its columns are named by number from 1 (a serial capture,
+  :func:`~._textscan.find_header`).
 * Delimiter: given, or detected from the header: the most frequent of ``,``
   ``;`` and tab, else runs of whitespace. Fields may be double-quoted.
 * Columns: ``--columns`` (:func:`gyrotherm.readers.parse_columns`) or a
@@ -128,8 +129,8 @@ def read_text(path: str | Path, *, columns: ColumnMap | None = None,
     if not head.named:
         base["header"] = "none (columns numbered from 1)"
     if cmap.rate_hz is not None:
-        base["time_source"] = (f"nominal: row index / {cmap.rate_hz:g} Hz (the log has no time "
-                        "stamps; dropped lines are not counted)")
+        base["time_source"] = (f"nominal: row index / {cmap.rate_hz:g} Hz (the log has no "
+                               "time stamps; dropped lines are not counted)")
     if table.dropped:
         base["dropped_lines"] = _dropped(table)
     runs = []

@@ -10,10 +10,10 @@ and column.
 A serial capture (a terminal's log of what a board printed) differs from a logger's
 CSV in three ways, each handled here:
 
-* **no header**: the first data line is all numbers; its columns are then named by
-  their 1-based number (``"1"``, ``"2"``, …, :data:`NUMBERED`), and the field count is
-  the most common one over the first :data:`WIDTH_LINES` lines (a capture may start
-  mid-line);
+* **no header**: at least half of the first line's fields are numbers (and they are not
+  the labels ``0…n−1``/``1…n``); its columns are then named by their 1-based number
+  (``"1"``, ``"2"``, …), and the field count is the most common one over the first
+  :data:`WIDTH_LINES` lines (a capture may start mid-line) (:func:`find_header`);
 * **banner lines**: PuTTY writes ``=~=~=~=…= PuTTY log <date> <time> =~=…`` at the top
   of each session it logs (:data:`PUTTY_BANNER`); skipped like comments;
 * **damaged lines**: a line cut short, two lines run together, a token garbled by a
@@ -44,8 +44,9 @@ PUTTY_BANNER = "=~=~=~=~=~=~=~=~=~=~=~= PuTTY log "
 WIDTH_LINES = 200
 """Lines of a headerless file whose most common field count is its width."""
 BAD_LINES = ("error", "skip")
-"""What a data line with the wrong field count or a mapped cell that is not a finite
-number does: stop with an error naming it, or be dropped and listed."""
+"""What a data line with the wrong field count, a mapped cell that is not a finite
+number or a blank device/run cell does: stop with an error naming it, or be dropped and
+listed."""
 
 
 def detect_delimiter(header: str) -> str:
@@ -64,15 +65,15 @@ def split(line: str, delimiter: str) -> list[str]:
     return [c.strip() for c in next(csv.reader([line.rstrip("\r\n")], delimiter=delimiter))]
 
 
-def _skip(line: str) -> bool:
-    s = line.strip()
-    return not s or s.startswith("#") or s.startswith(PUTTY_BANNER)
-
-
 def _comment(line: str) -> bool:
     """Skipped by ``numpy.loadtxt`` too (blank or ``#``)."""
     s = line.strip()
     return not s or s.startswith("#")
+
+
+def _skip(line: str) -> bool:
+    """Not a data line: blank, a ``#`` comment or a PuTTY banner."""
+    return _comment(line) or line.lstrip().startswith(PUTTY_BANNER)
 
 
 @dataclass(frozen=True)
@@ -122,7 +123,7 @@ class Header:
     delimiter: str
     named: bool = True
     first: tuple[str, ...] = ()
-    """A headerless file's first data line, split (for messages)."""
+    """A headerless file's first line of its width, split (for messages)."""
 
     @property
     def delimiter_name(self) -> str:
