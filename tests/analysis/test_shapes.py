@@ -101,6 +101,11 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
     before10 = {*before9, *sweep.SHAPE_EVAL9_SEEDS, *sweep.NULL_CONFIRM7_SEEDS}
     assert not set(sweep.SHAPE_EVAL10_SEEDS) & before10
     assert not set(sweep.NULL_CONFIRM8_SEEDS) & {*before10, *sweep.SHAPE_EVAL10_SEEDS}
+    assert sweep.SHAPE_EVAL11_SEEDS == (501, 502, 503, 504, 505)
+    assert sweep.NULL_CONFIRM9_SEEDS == tuple(range(24001, 24601))
+    before11 = {*before10, *sweep.SHAPE_EVAL10_SEEDS, *sweep.NULL_CONFIRM8_SEEDS}
+    assert not set(sweep.SHAPE_EVAL11_SEEDS) & before11
+    assert not set(sweep.NULL_CONFIRM9_SEEDS) & {*before11, *sweep.SHAPE_EVAL11_SEEDS}
     assert sweep.NULL_CONFIRM3_SEEDS == tuple(range(12001, 12601))
     assert not set(sweep.NULL_CONFIRM3_SEEDS) & {
         *used, *SHAPE_DEV2_SEEDS, *SHAPE_EVAL5_SEEDS, *sweep.NULL_EVAL_SEEDS,
