@@ -31,7 +31,10 @@ Scoring against the injected truth:
 * **not resolvable**: an effect the diagnosis declares "not resolvable at this
   readout" (``Diagnosis.not_resolvable``) is not a finding: where it was
   injected it counts as missed (column "of which not resolvable"), elsewhere it
-  is no false alarm (the diagnosis said the data cannot support it);
+  is no false alarm (the diagnosis said the data cannot support it); likewise an
+  ``unexplained`` finding in another variable whose ``not_told_from`` names the expected
+  one (the diagnosis said which of them the structure is in is not resolvable; column
+  "variable not told apart" in the totals), from round 9 (SHAPE_EVAL11_SEEDS) on;
 * **parameter error**: |estimate / truth − 1| of each found effect's checked
   parameter (the hidden-effect tests' list); for the wide hysteresis the
   amplitude, for the warm-ups the amplitude at power-on (A₁ + A₂; A/(1 + e^(−t½/s))).
@@ -326,7 +329,7 @@ def run_case(case: Case, cond: Condition, seed: int) -> dict[str, Any]:
             proxy_unresolved.append(f.effect)
     exact_notes = sorted(f.effect for f in d.findings  # a shape note on the exact formula
                          if not case.shapes and f.effect in case.expected and f.shape)
-    allowed = []
+    allowed, variable_unresolved = [], []
     coverage = []
     for u in d.unexplained:
         lo, hi = u.where
@@ -337,6 +340,11 @@ def run_case(case: Case, cond: Condition, seed: int) -> dict[str, Any]:
             continue
         if u.variable in case.allowed_unexplained:
             allowed.append(u.variable)
+            continue
+        rival = [e for e in case.expected if e.startswith("unexplained:")
+                 and e.split(":", 1)[1] in u.not_told_from]
+        if rival:  # named in another variable, this one stated as not told apart from it:
+            variable_unresolved.extend(rival)  # a miss the diagnosis declared, not an alarm
             continue
         names.add(f"unexplained:{u.variable}[{lo:.3g}, {hi:.3g}]")
     expected = set(case.expected)
@@ -374,14 +382,16 @@ def run_case(case: Case, cond: Condition, seed: int) -> dict[str, Any]:
         "found_as_unexplained": as_unexplained, "found_as_proxy": as_proxy,
         "named": [{"name": f.effect + (" (shape differs)" if f.shape else ""),
                    "gain": f.gain, "shape": f.shape} for f in d.findings]
-        + [{"name": f"unexplained:{u.variable}", "gain": u.gain, "where": list(u.where)}
-           for u in d.unexplained],
+        + [{"name": f"unexplained:{u.variable}", "gain": u.gain, "where": list(u.where),
+            "not_told_from": dict(u.not_told_from)} for u in d.unexplained],
         "where_coverage": coverage,
         "not_resolvable": not_resolvable,
         "missed_not_resolvable": sorted(((expected - names) & set(not_resolvable))
                                         | ({e for e in expected - names
                                             if e.startswith("unexplained:")}
-                                           if proxy_unresolved else set())),
+                                           if proxy_unresolved else set())
+                                        | ((expected - names) & set(variable_unresolved))),
+        "variable_unresolved": sorted((expected - names) & set(variable_unresolved)),
         "proxy_shape_unresolved": proxy_unresolved,
         "exact_form_shape_notes": exact_notes,
         "parameter_errors": errors,
@@ -571,7 +581,9 @@ def _totals(rows: Sequence[dict[str, Any]]) -> list[str]:
         f"- declared not resolvable: {sum(len(r['not_resolvable']) for r in rows)} "
         f"(where injected: {sum(len(r['missed_not_resolvable']) for r in rows)}; of these, "
         f"the nearest catalogued effect named with its shape declared not resolvable: "
-        f"{sum(len(r.get('proxy_shape_unresolved', [])) for r in rows)})",
+        f"{sum(len(r.get('proxy_shape_unresolved', [])) for r in rows)}; a structure "
+        f"named in another variable, stated as not told apart from the expected one: "
+        f"{sum(len(r.get('variable_unresolved', [])) for r in rows)})",
         f"- a note that the shape differs on a case that injects the catalogue's exact "
         f"formula: {sum(len(r.get('exact_form_shape_notes', [])) for r in rows)} of "
         f"{sum(len(r['found']) for r in rows if not _shaped(r))} such findings",

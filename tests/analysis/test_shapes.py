@@ -286,6 +286,23 @@ def test_abs_dt_named_gradient_quadratic_carries_the_shape_note() -> None:
     assert truth.shapes["abs_dt"]["slope_dps_per_c"] != 0.0
 
 
+def test_abs_dt_named_in_time_states_that_delta_t_is_not_told_apart(
+    sweep: ModuleType,
+) -> None:
+    # ninth evaluation set, seed 464 at the corner (a used set; the case round 9 answers):
+    # every run repeats the profile, |ΔT| is named a structure in time (×1.44), and a spline
+    # in ΔT in its place does nearly as well (×1.35): the diagnosis says which variable is
+    # not resolvable, and the sweep counts the miss as declared, not as a false alarm
+    row = sweep.run_case(sweep.CASES_BY_NAME["abs_dt"], sweep.CONDITIONS[3], 464)
+    (named,) = [n for n in row["named"] if n["name"].startswith("unexplained:")]
+    assert named["name"] == "unexplained:time_since_power_on_s"
+    assert set(named["not_told_from"]) == {"delta_t_c"}
+    assert named["gain"] / named["not_told_from"]["delta_t_c"] < 1.10
+    assert row["missed"] == row["variable_unresolved"] == ["unexplained:delta_t_c"]
+    assert row["missed_not_resolvable"] == ["unexplained:delta_t_c"]
+    assert row["false_alarms"] == []
+
+
 def test_catalogued_gradient_quadratic_carries_no_shape_note() -> None:
     runs, _ = variant_runs(SynthConfig(duration_s=6000.0, rate_hz=10.0,
                                        effects={"gradient_quadratic": {}}),

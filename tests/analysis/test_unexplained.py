@@ -11,13 +11,16 @@ import pytest
 
 from gyrotherm.analysis import Diagnosis, SynthConfig, diagnose
 from gyrotherm.analysis._diagnose import export_calibration
+from gyrotherm.analysis._prep import Prepared
 from gyrotherm.analysis._score import Selector
 from gyrotherm.analysis._select import _compare
 from gyrotherm.analysis._unexplained import (
     N_KNOTS,
+    Search,
     evaluate_with,
     hats,
     knots_for,
+    search_unexplained,
     spline_knots,
     steepest_span,
 )
@@ -146,3 +149,50 @@ def test_the_knot_count_is_chosen_by_bic_and_deployed_as_found() -> None:
     cal = export_calibration(runs, d).calibration
     corr = cal.effects_of("x").correction
     assert corr is not None and len(corr.knots) == len(u.knots)
+
+
+def _ramp_runs(holds_s: list[float], flips: list[float], seed: int) -> list[Prepared]:
+    """3000-s runs: a hold of ``holds_s[r]`` at 25 °C, a smooth (raised-cosine) ramp of
+    flip·15 °C over 1000 s, a hold, the ramp back, a hold to the end. The bias is
+    0.03·|G|, G = 120·dT/dt the true gradient (even in it, which the paper's terms cannot
+    follow), plus white noise σ = 0.003 °/s; the runs' ΔT estimate is G plus an error of
+    σ = 0.15 °C (a coarse readout's)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(3000.0)
+    out = []
+    for r, (hold, flip) in enumerate(zip(holds_s, flips, strict=True)):
+        up = np.clip((t - hold) / 1000.0, 0.0, 1.0)
+        down = np.clip((t - hold - 1500.0) / 1000.0, 0.0, 1.0)
+        temp = 25.0 + flip * 7.5 * (np.cos(np.pi * down) - np.cos(np.pi * up))
+        g = 120.0 * np.gradient(temp)
+        rate = 0.001 * temp + 0.03 * np.abs(g) + 0.003 * rng.standard_normal(len(t))
+        dt = g + 0.15 * rng.standard_normal(len(t))
+        out.append(Prepared(name=f"r{r}", time_s=t, temperature_c=temp, rate_c_per_s=g / 120,
+                            delta_t_c=dt, chamber_c=None, rate_dps=rate,
+                            counts=np.ones(len(t)), direction=np.zeros(len(t))))
+    return out
+
+
+def _search(runs: list[Prepared]) -> Search:
+    sel = Selector(runs, Scaling.from_data(np.concatenate([p.temperature_c for p in runs]),
+                                           np.concatenate([p.delta_t_c for p in runs])))
+    return search_unexplained(sel, sel.evaluate({}), margin=0.10)
+
+
+def test_a_structure_is_not_told_apart_from_a_variable_the_runs_move_with_it() -> None:
+    # every run the same profile, its ramps mirror images: |G| is the same function of T
+    # on every run (and of time), so a spline in T does nearly as well as one in ΔT
+    (u,) = _search(_ramp_runs([300.0, 300.0, 300.0], [1.0, 1.0, 1.0], seed=5)).unexplained
+    assert u.variable == "delta_t_c" and u.gain > 1.5
+    assert set(u.not_told_from) == {"temperature_c"}
+    assert u.gain / u.not_told_from["temperature_c"] < 1.10  # within the margin
+    assert "not resolvable at this readout" in u.evidence
+    assert u.to_dict()["params"]["not_told_from"] == dict(u.not_told_from)
+
+
+def test_a_structure_the_runs_tell_apart_names_its_variable_alone() -> None:
+    # ramps at different times and in both directions: |ΔT| is no function of time or T
+    (u,) = _search(_ramp_runs([0.0, 250.0, 500.0], [1.0, -1.0, 1.0], seed=5)).unexplained
+    assert u.variable == "delta_t_c"
+    assert u.not_told_from == {}
+    assert "not told apart" not in u.evidence

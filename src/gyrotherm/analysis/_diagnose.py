@@ -18,6 +18,7 @@
    (:func:`~._select.prune`); test residual structure no catalogued effect
    explains (:mod:`._unexplained`: a spline in T, ΔT or time since power-on,
    reported as an ``unexplained`` finding, not part of the extended model; one
+   another variable's spline does as well in its place names it, ``not_told_from``; one
    no better than readout replays without it give is a verdict, :mod:`._resolve`, and
    one sharper than the readout can place gets a note saying so, :mod:`._resolution`; a
    catalogued finding whose "shape differs" note the readout alone would produce keeps its
@@ -294,6 +295,11 @@ def diagnose(
         if where_note:
             u = replace(u, evidence=f"{u.evidence}; {where_note}")
             notes.append(f"unexplained:{u.variable}: {where_note}")
+            say(notes[-1])
+        if u.not_told_from:  # another variable's spline does as well in its place
+            notes.append(f"unexplained:{u.variable}: which variable it is in is not "
+                         "resolvable at this readout: a structure in "
+                         f"{' or '.join(sorted(u.not_told_from))} does as well held out")
             say(notes[-1])
         unexplained.append(u)
     if search.dropped:

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -72,11 +72,16 @@ class Unexplained:
     evidence: str
     steepest: tuple[float, float] = (math.nan, math.nan)
     """The steepest part of ``where`` (knot intervals at least half as steep)."""
+    not_told_from: Mapping[str, float] = field(default_factory=dict)
+    """Other variables whose spline in this one's place also passes the entry criteria and
+    is not beaten by ×(1 + margin) held out (variable → its held-out gain): which of them
+    the structure is in is not resolvable at this readout (:func:`search_unexplained`)."""
 
     def to_dict(self) -> dict[str, Any]:
         return {"effect": "unexplained",
                 "params": {"variable": self.variable, "where": list(self.where),
-                           "steepest": list(self.steepest)},
+                           "steepest": list(self.steepest),
+                           "not_told_from": dict(self.not_told_from)},
                 "gain": self.gain, "heldout_rms_dps": self.heldout_rms_dps,
                 "evidence": self.evidence,
                 "correction": {"kind": "linear spline", "knots": list(self.knots),
@@ -301,21 +306,49 @@ def search_unexplained(
     found = []
     for v, k in chosen:
         before, after = gains[v]
+        others = [(w, kk) for w, kk in chosen if w != v]
         if dropped:  # the gain over the catalogued model that remains
-            others = [(w, kk) for w, kk in chosen if w != v]
             before = evaluate_with(selector, catalogued.effects, others)
             after = evaluate_with(selector, catalogued.effects, [*others, (v, k)])
         ratio, improved, dbic = _compare(before, after)
+        rival = _rivals(selector, catalogued.effects, others, before, after,
+                        [w for w in variables if w not in dict(chosen)], passes, margin)
         values, cov = values_with_covariance(
             [hats(variable(p, v), k) for p in selector.runs], resid, k)
         found.append(Unexplained(
             variable=v, where=support_span(k, values, cov), steepest=steepest_span(k, values),
             knots=tuple(float(x) for x in k), correction_dps=tuple(float(x) for x in values),
-            heldout_rms_dps=after.heldout_rms_dps, gain=ratio,
+            heldout_rms_dps=after.heldout_rms_dps, gain=ratio, not_told_from=rival,
             evidence=(f"linear spline in {v} ({len(k)} knots) on top of "
                       f"{'+'.join(('paper', *catalogued.effects))}: held-out RMS "
                       f"{before.heldout_rms_dps:.5f} → {after.heldout_rms_dps:.5f} °/s, better "
                       f"on {improved}/{len(selector.runs)} left-out runs; ΔBIC_eff = "
                       f"{dbic:.1f}" + (f"; made {', '.join(dropped)} redundant" if dropped
-                                       else ""))))
+                                       else "") + _rival_text(rival))))
     return Search(catalogued, tuple(found), tuple(dropped))
+
+
+def _rivals(
+    selector: Selector, effects: Mapping[str, float], others: Sequence[tuple[str, FloatArray]],
+    before: Evaluation, after: Evaluation, candidates: Sequence[str],
+    passes: Callable[[Evaluation, Evaluation], bool], margin: float,
+) -> dict[str, float]:
+    """The variables of ``candidates`` whose spline, in place of the one that took
+    ``before`` to ``after`` (on the same catalogued model and other splines), also passes
+    the entry criteria and is not beaten by it by ×(1 + ``margin``) held out: variable →
+    its held-out gain over ``before``."""
+    out: dict[str, float] = {}
+    for w in candidates:
+        k = spline_knots(selector, effects, others, w, before)
+        ev = evaluate_with(selector, effects, [*others, (w, k)])
+        if passes(before, ev) and ev.heldout_rms_dps < after.heldout_rms_dps * (1.0 + margin):
+            out[w] = before.heldout_rms_dps / ev.heldout_rms_dps
+    return out
+
+
+def _rival_text(rival: Mapping[str, float]) -> str:
+    if not rival:
+        return ""
+    alts = ", ".join(f"{w} (×{g:.3f} held out in its place)" for w, g in sorted(rival.items()))
+    return (f"; not told apart from a structure in {alts}: which variable it is in is "
+            "not resolvable at this readout (the runs move them together)")
