@@ -151,12 +151,14 @@ def test_the_knot_count_is_chosen_by_bic_and_deployed_as_found() -> None:
     assert corr is not None and len(corr.knots) == len(u.knots)
 
 
-def _ramp_runs(holds_s: list[float], flips: list[float], seed: int) -> list[Prepared]:
+def _ramp_runs(holds_s: list[float], flips: list[float], seed: int,
+               warmup_dps: float = 0.0) -> list[Prepared]:
     """3000-s runs: a hold of ``holds_s[r]`` at 25 °C, a smooth (raised-cosine) ramp of
     flip·15 °C over 1000 s, a hold, the ramp back, a hold to the end. The bias is
     0.03·|G|, G = 120·dT/dt the true gradient (even in it, which the paper's terms cannot
     follow), plus white noise σ = 0.003 °/s; the runs' ΔT estimate is G plus an error of
-    σ = 0.15 °C (a coarse readout's)."""
+    σ = 0.15 °C (a coarse readout's). ``warmup_dps``: a second structure, a warm-up of that
+    size, exp(−t/400 s); ramps of 15·|flip| °C."""
     rng = np.random.default_rng(seed)
     t = np.arange(3000.0)
     out = []
@@ -165,7 +167,8 @@ def _ramp_runs(holds_s: list[float], flips: list[float], seed: int) -> list[Prep
         down = np.clip((t - hold - 1500.0) / 1000.0, 0.0, 1.0)
         temp = 25.0 + flip * 7.5 * (np.cos(np.pi * down) - np.cos(np.pi * up))
         g = 120.0 * np.gradient(temp)
-        rate = 0.001 * temp + 0.03 * np.abs(g) + 0.003 * rng.standard_normal(len(t))
+        rate = (0.001 * temp + 0.03 * np.abs(g) + warmup_dps * np.exp(-t / 400.0)
+                + 0.003 * rng.standard_normal(len(t)))
         dt = g + 0.15 * rng.standard_normal(len(t))
         out.append(Prepared(name=f"r{r}", time_s=t, temperature_c=temp, rate_c_per_s=g / 120,
                             delta_t_c=dt, chamber_c=None, rate_dps=rate,
@@ -196,3 +199,13 @@ def test_a_structure_the_runs_tell_apart_names_its_variable_alone() -> None:
     assert u.variable == "delta_t_c"
     assert u.not_told_from == {}
     assert "not told apart" not in u.evidence
+
+
+def test_two_structures_the_runs_tell_apart_list_no_rival() -> None:
+    # one structure in ΔT and one in time (a warm-up), on runs that tell the variables
+    # apart: both found, and T listed as a rival of neither (each rival is tried beside the
+    # other structure, so the other's gain does not count for it)
+    found = _search(_ramp_runs([0.0, 250.0, 500.0], [0.7, 1.0, 1.3], seed=5,
+                               warmup_dps=0.1)).unexplained
+    assert {u.variable for u in found} == {"delta_t_c", "time_since_power_on_s"}
+    assert all(u.not_told_from == {} for u in found)

@@ -311,7 +311,11 @@ def search_unexplained(
             before = evaluate_with(selector, catalogued.effects, others)
             after = evaluate_with(selector, catalogued.effects, [*others, (v, k)])
         ratio, improved, dbic = _compare(before, after)
-        rival = _rivals(selector, catalogued.effects, others, before, after,
+        basis = (before, after)  # the rivals are tried beside every other structure found
+        if others and not dropped:
+            basis = (evaluate_with(selector, catalogued.effects, others),
+                     evaluate_with(selector, catalogued.effects, [*others, (v, k)]))
+        rival = _rivals(selector, catalogued.effects, others, *basis,
                         [w for w in variables if w not in dict(chosen)], passes, margin)
         values, cov = values_with_covariance(
             [hats(variable(p, v), k) for p in selector.runs], resid, k)
