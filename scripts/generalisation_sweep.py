@@ -1,8 +1,8 @@
 """Does the diagnosis generalise beyond the catalogue's exact forms? A seeded sweep.
 
     .venv/bin/python scripts/generalisation_sweep.py
-        [--seeds dev|eval|eval1|shapes-dev|shapes-dev2|shapes-eval…shapes-eval11|
-                 null-eval|null-confirm…null-confirm9]
+        [--seeds dev|eval|eval1|shapes-dev|shapes-dev2|shapes-eval…shapes-eval12|
+                 null-eval|null-confirm…null-confirm10]
         [--quick] [--conditions I ...] [--cases NAME ...] [--json OUT]
 
 Per case (what is injected) × condition (sample rate, temperature readout, number
@@ -151,6 +151,10 @@ SHAPE_EVAL11_SEEDS = (501, 502, 503, 504, 505)
 """Eleventh evaluation set for the shapes, fixed (the commit adding this line, with
 NULL_CONFIRM9_SEEDS) after the tenth set was scored and before any round-9 change and any
 result on it; run once."""
+SHAPE_EVAL12_SEEDS = (521, 522, 523, 524, 525)
+"""Twelfth evaluation set for the shapes, fixed (the commit adding this line, with
+NULL_CONFIRM10_SEEDS) after the eleventh set was scored and before any round-10 change and
+any result on it; run once."""
 NULL_EVAL_SEEDS = tuple(range(5001, 5801))
 """Null-only evaluation (issue 19 item 1, "nulls at scale"): 800 seeds, fixed (the commit
 adding this line) before any result on them was seen; never used while developing; run
@@ -194,9 +198,12 @@ Seed j at CONDITIONS[j % 4]: 150 distinct devices per condition."""
 NULL_CONFIRM9_SEEDS = tuple(range(24001, 24601))
 """Fresh nulls for round 9, fixed with SHAPE_EVAL11_SEEDS before any round-9 change; run once.
 Seed j at CONDITIONS[j % 4]: 150 distinct devices per condition."""
+NULL_CONFIRM10_SEEDS = tuple(range(26001, 26601))
+"""Fresh nulls for round 10, fixed with SHAPE_EVAL12_SEEDS before any round-10 change; run
+once. Seed j at CONDITIONS[j % 4]: 150 distinct devices per condition."""
 NULL_SETS = (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS, NULL_CONFIRM2_SEEDS, NULL_CONFIRM3_SEEDS,
              NULL_CONFIRM4_SEEDS, NULL_CONFIRM5_SEEDS, NULL_CONFIRM6_SEEDS, NULL_CONFIRM7_SEEDS,
-             NULL_CONFIRM8_SEEDS, NULL_CONFIRM9_SEEDS)
+             NULL_CONFIRM8_SEEDS, NULL_CONFIRM9_SEEDS, NULL_CONFIRM10_SEEDS)
 """Null-only sets: one device per diagnosis, conditions in turn."""
 SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "shapes-dev": SHAPE_DEV_SEEDS, "shapes-eval": SHAPE_EVAL_SEEDS,
@@ -210,7 +217,8 @@ SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "null-confirm6": NULL_CONFIRM6_SEEDS, "shapes-eval9": SHAPE_EVAL9_SEEDS,
              "null-confirm7": NULL_CONFIRM7_SEEDS, "shapes-eval10": SHAPE_EVAL10_SEEDS,
              "null-confirm8": NULL_CONFIRM8_SEEDS, "shapes-eval11": SHAPE_EVAL11_SEEDS,
-             "null-confirm9": NULL_CONFIRM9_SEEDS}
+             "null-confirm9": NULL_CONFIRM9_SEEDS, "shapes-eval12": SHAPE_EVAL12_SEEDS,
+             "null-confirm10": NULL_CONFIRM10_SEEDS}
 DURATION_S = 6000.0
 STEP_AT_C = 30.0
 CHECKED = {

@@ -106,6 +106,11 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
     before11 = {*before10, *sweep.SHAPE_EVAL10_SEEDS, *sweep.NULL_CONFIRM8_SEEDS}
     assert not set(sweep.SHAPE_EVAL11_SEEDS) & before11
     assert not set(sweep.NULL_CONFIRM9_SEEDS) & {*before11, *sweep.SHAPE_EVAL11_SEEDS}
+    assert sweep.SHAPE_EVAL12_SEEDS == (521, 522, 523, 524, 525)
+    assert sweep.NULL_CONFIRM10_SEEDS == tuple(range(26001, 26601))
+    before12 = {*before11, *sweep.SHAPE_EVAL11_SEEDS, *sweep.NULL_CONFIRM9_SEEDS}
+    assert not set(sweep.SHAPE_EVAL12_SEEDS) & before12
+    assert not set(sweep.NULL_CONFIRM10_SEEDS) & {*before12, *sweep.SHAPE_EVAL12_SEEDS}
     assert sweep.NULL_CONFIRM3_SEEDS == tuple(range(12001, 12601))
     assert not set(sweep.NULL_CONFIRM3_SEEDS) & {
         *used, *SHAPE_DEV2_SEEDS, *SHAPE_EVAL5_SEEDS, *sweep.NULL_EVAL_SEEDS,
