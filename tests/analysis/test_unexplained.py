@@ -203,9 +203,31 @@ def test_a_structure_the_runs_tell_apart_names_its_variable_alone() -> None:
 
 def test_two_structures_the_runs_tell_apart_list_no_rival() -> None:
     # one structure in ΔT and one in time (a warm-up), on runs that tell the variables
-    # apart: both found, and T listed as a rival of neither (each rival is tried beside the
-    # other structure, so the other's gain does not count for it)
-    found = _search(_ramp_runs([0.0, 250.0, 500.0], [0.7, 1.0, 1.3], seed=5,
-                               warmup_dps=0.1)).unexplained
+    # apart: both found, T listed as a rival of neither, and each one's gain is over the
+    # final model (the other structure in it), the basis its rivals are tried on
+    runs = _ramp_runs([0.0, 250.0, 500.0], [0.7, 1.0, 1.3], seed=5, warmup_dps=0.1)
+    found = _search(runs).unexplained
     assert {u.variable for u in found} == {"delta_t_c", "time_since_power_on_s"}
     assert all(u.not_told_from == {} for u in found)
+    sel = Selector(runs, Scaling.from_data(np.concatenate([p.temperature_c for p in runs]),
+                                           np.concatenate([p.delta_t_c for p in runs])))
+    for u in found:
+        (other,) = [(w.variable, np.array(w.knots)) for w in found if w is not u]
+        without = evaluate_with(sel, {}, [other])
+        with_it = evaluate_with(sel, {}, [other, (u.variable, np.array(u.knots))])
+        assert u.gain == pytest.approx(without.heldout_rms_dps / with_it.heldout_rms_dps)
+        assert u.heldout_rms_dps == pytest.approx(with_it.heldout_rms_dps)
+
+
+def test_a_deployed_correction_not_told_apart_says_so() -> None:
+    # the ninth evaluation set's |ΔT| at the corner (seed 464, a used set): named in time,
+    # ΔT not told apart; the calibration still deploys it, with the caveat said and kept
+    runs, _ = variant_runs(CORNER_CFG, shapes={"abs_dt": {}}, n_runs=3, seed=464)
+    d = diagnose(runs, simulate=False)
+    (u,) = d.unexplained
+    assert u.variable == "time_since_power_on_s" and set(u.not_told_from) == {"delta_t_c"}
+    said: list[str] = []
+    cal = export_calibration(runs, d, progress=said.append).calibration
+    assert any("not told apart from a structure in delta_t_c" in m for m in said)
+    (deployed,) = cal.provenance["diagnosis"]["deployed"]
+    assert deployed["params"]["not_told_from"] == dict(u.not_told_from)

@@ -428,6 +428,12 @@ def export_calibration(
         "not_deployed": [u.to_dict() for u in diagnosis.unexplained[1:]],
         "runs": [{"name": r.name, "source": r.source, "sha256": r.sha256} for r in runs]}}
     # the first unexplained structure (the largest gain) becomes the axis' correction
+    if diagnosis.unexplained and diagnosis.unexplained[0].not_told_from:
+        u = diagnosis.unexplained[0]
+        say(f"the correction in {u.variable} is not told apart from a structure in "
+            f"{' or '.join(sorted(u.not_told_from))} in these runs (they move together): "
+            f"on a vehicle where they do not, it may not hold; runs with other temperature "
+            f"profiles would tell them apart")
     corrections = ({diagnosis.axis: diagnosis.unexplained[0].variable}
                    if diagnosis.unexplained else None)
     knots = ({diagnosis.axis: len(diagnosis.unexplained[0].knots)}

@@ -29,7 +29,15 @@ errors and ≥ ¼ of the steepest, first to last, reaching the end of the range
 within one interval); ``steepest``: the knot intervals, contiguous with the
 steepest one, whose slope |Δc/Δv| is at least half the steepest (how sharp the
 structure is, for :mod:`._resolution`). ``gain`` = held-out RMS of the model
-without the correction / with it.
+without the correction / with it; the model is the final one (the catalogued effects that
+remain and every other structure found).
+
+``not_told_from``: each variable not found is tried in the structure's place on that same
+model; one whose spline passes the entry criteria and is not beaten by ×(1 + margin) held
+out is listed with its gain: which variable the structure is in is not resolvable at this
+readout (runs that repeat one temperature profile move T, ΔT and time together). An empty
+listing says no other variable's spline (at the knot counts tried) does as well, not that
+the runs tell the variables apart everywhere.
 """
 
 from __future__ import annotations
@@ -307,15 +315,12 @@ def search_unexplained(
     for v, k in chosen:
         before, after = gains[v]
         others = [(w, kk) for w, kk in chosen if w != v]
-        if dropped:  # the gain over the catalogued model that remains
+        if dropped or others:  # the gain over the final model: the catalogued effects that
+            # remain and every other structure found (the basis its rivals are tried on)
             before = evaluate_with(selector, catalogued.effects, others)
             after = evaluate_with(selector, catalogued.effects, [*others, (v, k)])
         ratio, improved, dbic = _compare(before, after)
-        basis = (before, after)  # the rivals are tried beside every other structure found
-        if others and not dropped:
-            basis = (evaluate_with(selector, catalogued.effects, others),
-                     evaluate_with(selector, catalogued.effects, [*others, (v, k)]))
-        rival = _rivals(selector, catalogued.effects, others, *basis,
+        rival = _rivals(selector, catalogued.effects, others, before, after,
                         [w for w in variables if w not in dict(chosen)], passes, margin)
         values, cov = values_with_covariance(
             [hats(variable(p, v), k) for p in selector.runs], resid, k)
