@@ -1,6 +1,11 @@
 """Time ``diagnose`` on seven 2-hour runs at 10 Hz; print one JSON line.
 
-    .venv/bin/python bench/diagnose_speed.py [--no-simulation] [--candump]
+    .venv/bin/python bench/diagnose_speed.py [--no-simulation] [--candump] [--structures]
+
+``--structures``: instead, four devices of the generalisation sweep whose diagnosis finds
+an unexplained structure (a periodic bias in T and a saturating ΔT response at 0.125 °C, a
+bias ∝ |ΔT| at 0.5 °C and at 1 °C; shapes-dev2 seeds 41–44, 3–4 runs of 6000 s), without
+the simulator: what the structure's own checks cost (``not_told_from``, the replays).
 
 Runs come from the independent generator (gyrotherm.analysis.synth_runs, one
 effect injected); generation is not timed, reading CSV is not included. With
@@ -38,7 +43,34 @@ def _via_candump(runs: list[Run], folder: Path) -> tuple[list[Run], float, int]:
     return out, time.perf_counter() - start, frames
 
 
+STRUCTURE_CASES = (  # (rate Hz, LSB °C, hold s, runs, shape, seed)
+    (10.0, 0.125, 1.28, 4, "periodic_t", 41), (10.0, 0.125, 1.28, 4, "saturating_dt", 43),
+    (50.0, 0.5, 1.0, 3, "abs_dt", 42), (10.0, 1.0, 1.3, 3, "abs_dt", 44))
+
+
+def structures() -> None:
+    from gyrotherm.analysis.synth._variants import variant_runs
+
+    seconds, found = [], []
+    for rate_hz, lsb_c, hold_s, n_runs, shape, seed in STRUCTURE_CASES:
+        cfg = SynthConfig(duration_s=6000.0, rate_hz=rate_hz, readout_lsb_c=lsb_c,
+                          readout_period_s=hold_s)
+        runs, _ = variant_runs(cfg, shapes={shape: {}}, n_runs=n_runs, seed=seed)
+        start = time.perf_counter()
+        result = diagnose(runs, simulate=False)
+        seconds.append(round(time.perf_counter() - start, 2))
+        found.append([u.variable for u in result.unexplained])
+    print(json.dumps({
+        "benchmark": "diagnose_structures_4_devices", "seconds": round(sum(seconds), 2),
+        "per_device_seconds": seconds, "unexplained": found, "cpus": os.cpu_count(),
+        "python": platform.python_version(),
+    }))
+
+
 def main() -> None:
+    if "--structures" in sys.argv:
+        structures()
+        return
     simulate = "--no-simulation" not in sys.argv
     candump = "--candump" in sys.argv
     runs, _ = synth_runs(SynthConfig(duration_s=7200.0, rate_hz=10.0,
