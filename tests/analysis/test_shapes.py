@@ -82,35 +82,25 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
     before7 = {*earlier, *sweep.SHAPE_EVAL6_SEEDS, *sweep.NULL_CONFIRM4_SEEDS}
     assert not set(sweep.SHAPE_EVAL7_SEEDS) & before7
     assert not set(sweep.NULL_CONFIRM5_SEEDS) & {*before7, *sweep.SHAPE_EVAL7_SEEDS}
-    assert sweep.SHAPE_EVAL8_SEEDS == (441, 442, 443, 444, 445)
-    assert sweep.NULL_CONFIRM6_SEEDS == tuple(range(18001, 18601))
-    before8 = {*before7, *sweep.SHAPE_EVAL7_SEEDS, *sweep.NULL_CONFIRM5_SEEDS}
-    assert not set(sweep.SHAPE_EVAL8_SEEDS) & before8
-    assert not set(sweep.NULL_CONFIRM6_SEEDS) & {*before8, *sweep.SHAPE_EVAL8_SEEDS}
-    # the 0.5 degC development nulls overlap no evaluation or confirmation set
-    assert not set(sweep.NULL_DEV2_SEEDS) & {*before8, *sweep.SHAPE_EVAL8_SEEDS,
-                                             *sweep.NULL_CONFIRM6_SEEDS}
-    assert sweep.SHAPE_EVAL9_SEEDS == (461, 462, 463, 464, 465)
-    assert sweep.NULL_CONFIRM7_SEEDS == tuple(range(20001, 20601))
-    before9 = {*before8, *sweep.SHAPE_EVAL8_SEEDS, *sweep.NULL_CONFIRM6_SEEDS,
-               *sweep.NULL_DEV2_SEEDS}
-    assert not set(sweep.SHAPE_EVAL9_SEEDS) & before9
-    assert not set(sweep.NULL_CONFIRM7_SEEDS) & {*before9, *sweep.SHAPE_EVAL9_SEEDS}
-    assert sweep.SHAPE_EVAL10_SEEDS == (481, 482, 483, 484, 485)
-    assert sweep.NULL_CONFIRM8_SEEDS == tuple(range(22001, 22601))
-    before10 = {*before9, *sweep.SHAPE_EVAL9_SEEDS, *sweep.NULL_CONFIRM7_SEEDS}
-    assert not set(sweep.SHAPE_EVAL10_SEEDS) & before10
-    assert not set(sweep.NULL_CONFIRM8_SEEDS) & {*before10, *sweep.SHAPE_EVAL10_SEEDS}
-    assert sweep.SHAPE_EVAL11_SEEDS == (501, 502, 503, 504, 505)
-    assert sweep.NULL_CONFIRM9_SEEDS == tuple(range(24001, 24601))
-    before11 = {*before10, *sweep.SHAPE_EVAL10_SEEDS, *sweep.NULL_CONFIRM8_SEEDS}
-    assert not set(sweep.SHAPE_EVAL11_SEEDS) & before11
-    assert not set(sweep.NULL_CONFIRM9_SEEDS) & {*before11, *sweep.SHAPE_EVAL11_SEEDS}
-    assert sweep.SHAPE_EVAL12_SEEDS == (521, 522, 523, 524, 525)
-    assert sweep.NULL_CONFIRM10_SEEDS == tuple(range(26001, 26601))
-    before12 = {*before11, *sweep.SHAPE_EVAL11_SEEDS, *sweep.NULL_CONFIRM9_SEEDS}
-    assert not set(sweep.SHAPE_EVAL12_SEEDS) & before12
-    assert not set(sweep.NULL_CONFIRM10_SEEDS) & {*before12, *sweep.SHAPE_EVAL12_SEEDS}
+    # rounds 6b to 10: each round's shape set and null set, fixed before the round, overlap
+    # nothing fixed or used before them (nor each other)
+    before = before7
+    for shapes, first, nulls, start in (
+            ("SHAPE_EVAL8_SEEDS", 441, "NULL_CONFIRM6_SEEDS", 18001),
+            ("SHAPE_EVAL9_SEEDS", 461, "NULL_CONFIRM7_SEEDS", 20001),
+            ("SHAPE_EVAL10_SEEDS", 481, "NULL_CONFIRM8_SEEDS", 22001),
+            ("SHAPE_EVAL11_SEEDS", 501, "NULL_CONFIRM9_SEEDS", 24001),
+            ("SHAPE_EVAL12_SEEDS", 521, "NULL_CONFIRM10_SEEDS", 26001)):
+        shape_set, null_set = getattr(sweep, shapes), getattr(sweep, nulls)
+        assert shape_set == tuple(range(first, first + 5))
+        assert null_set == tuple(range(start, start + 600))
+        assert not set(shape_set) & before
+        assert not set(null_set) & {*before, *shape_set}
+        before = {*before, *shape_set, *null_set}
+        if shapes == "SHAPE_EVAL8_SEEDS":  # the 0.5 degC development nulls, fixed after
+            # round 6b, overlap no evaluation or confirmation set
+            assert not set(sweep.NULL_DEV2_SEEDS) & before
+            before |= set(sweep.NULL_DEV2_SEEDS)
     assert sweep.NULL_CONFIRM3_SEEDS == tuple(range(12001, 12601))
     assert not set(sweep.NULL_CONFIRM3_SEEDS) & {
         *used, *SHAPE_DEV2_SEEDS, *SHAPE_EVAL5_SEEDS, *sweep.NULL_EVAL_SEEDS,
