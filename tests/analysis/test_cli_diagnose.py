@@ -68,6 +68,7 @@ def test_cli_writes_schema_json_and_report(tmp_path: Path,
                                                "time_since_power_on_s"]
     assert all(f["gain"] >= 1.10 - 1e-12 for f in floors)
     err = capsys.readouterr().err
+    assert f"diagnose: found drift (gain {data['findings'][0]['gain']:.2f}); extended" in err
     said = ", ".join(f"×{f['gain']:.2f} in {f['variable']}" for f in floors)
     assert f"diagnose: not resolvable at this readout: a structure gaining less than {said}" \
         in err
@@ -91,3 +92,23 @@ def test_cli_errors_name_the_problem(tmp_path: Path,
     args = _parser().parse_args(["diagnose", one, one, "--json", "-", "--axis", "y"])
     with pytest.raises(RunFileError, match="share a name"):
         args.func(args)
+
+
+def test_the_summary_names_an_unexplained_structure_and_its_caveat(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # the ninth evaluation set's |ΔT| at the corner (seed 464, a used set): the only finding
+    # is a structure in time, ΔT not told apart; the summary line must not say "nothing"
+    from gyrotherm.analysis.synth._variants import variant_runs
+
+    runs, _ = variant_runs(SynthConfig(duration_s=6000.0, rate_hz=10.0, readout_lsb_c=1.0,
+                                       readout_period_s=1.3),
+                           shapes={"abs_dt": {}}, n_runs=3, seed=464)
+    paths = [str(write_run(r, tmp_path / f"{r.name}.csv")) for r in runs]
+    out = tmp_path / "out.json"
+    args = _parser().parse_args(["diagnose", *paths, "--no-simulation", "--json", str(out)])
+    assert args.func(args) == 0
+    (u,) = json.loads(out.read_text())["findings"]
+    assert u["params"]["variable"] == "time_since_power_on_s"
+    err = capsys.readouterr().err
+    assert (f"diagnose: found unexplained in time_since_power_on_s (gain {u['gain']:.2f}; "
+            "not told apart from delta_t_c)") in err
