@@ -299,7 +299,7 @@ def diagnose(
         if u.not_told_from:  # another variable's spline does as well in its place
             notes.append(f"unexplained:{u.variable}: which variable it is in is not "
                          "resolvable at this readout: a structure in "
-                         f"{' or '.join(sorted(u.not_told_from))} does as well held out")
+                         f"{u.rivals} does as well held out")
             say(notes[-1])
         unexplained.append(u)
     if search.dropped:
@@ -431,7 +431,7 @@ def export_calibration(
     if diagnosis.unexplained and diagnosis.unexplained[0].not_told_from:
         u = diagnosis.unexplained[0]
         say(f"the correction in {u.variable} is not told apart from a structure in "
-            f"{' or '.join(sorted(u.not_told_from))} in these runs (they move together): "
+            f"{u.rivals} in these runs (they move together): "
             f"on a vehicle where they do not, it may not hold; runs with other temperature "
             f"profiles would tell them apart")
     corrections = ({diagnosis.axis: diagnosis.unexplained[0].variable}

@@ -85,6 +85,11 @@ class Unexplained:
     is not beaten by ×(1 + margin) held out (variable → its held-out gain): which of them
     the structure is in is not resolvable at this readout (:func:`search_unexplained`)."""
 
+    @property
+    def rivals(self) -> str:
+        """``not_told_from``'s variables, "delta_t_c or temperature_c" ("" when none)."""
+        return " or ".join(sorted(self.not_told_from))
+
     def to_dict(self) -> dict[str, Any]:
         return {"effect": "unexplained",
                 "params": {"variable": self.variable, "where": list(self.where),

@@ -103,8 +103,8 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     if not quiet:
         found = ", ".join([f"{f.effect} (gain {f.gain:.2f})" for f in result.findings] + [
             f"unexplained in {u.variable} (gain {u.gain:.2f}"
-            + (f"; not told apart from {' or '.join(sorted(u.not_told_from))})"
-               if u.not_told_from else ")") for u in result.unexplained]) or "nothing"
+            + (f"; not told apart from {u.rivals})" if u.rivals else ")")
+            for u in result.unexplained]) or "nothing"
         print(f"diagnose: found {found}; extended {result.extended.name}: held-out RMS "
               f"{result.baseline_heldout_rms_dps:.4g} → {result.extended_heldout_rms_dps:.4g} °/s "
               f"(gain {result.gain:.2f})", file=sys.stderr)
