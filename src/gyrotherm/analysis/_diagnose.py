@@ -56,7 +56,7 @@ from gyrotherm.analysis._compare import (
 from gyrotherm.analysis._effects import EFFECTS, ExtendedModel
 from gyrotherm.analysis._first_branch import drop_warmup_like_first_branch
 from gyrotherm.analysis._floor import Floor, detection_floors
-from gyrotherm.analysis._null_replay import Columns, replay_shape
+from gyrotherm.analysis._null_replay import Columns, Noise, replay_shape
 from gyrotherm.analysis._prep import (
     DEFAULT_TAU_S,
     Prepared,
@@ -325,17 +325,21 @@ def diagnose(
             heldout_rms_dps=alone.heldout_rms_dps,
             gain=base_ev.heldout_rms_dps / alone.heldout_rms_dps,
         ))
-    def shape_replay(name: str, variable: str, n_knots: int,
-                     alternative: Columns | None = None) -> tuple[float, ...]:
+    def shape_power(name: str, variable: str, n_knots: int, alternative: Columns | None,
+                    noise: Noise = "white", /) -> tuple[float, ...]:
         return replay_shape(selector, dict(final_ev.effects), readouts, limit.lsb_crossing_s,
                             name, variable, n_knots,
                             splines=[(u.variable, len(u.knots)) for u in unexplained],
                             unresolved=unresolved, seed=seed, replays=NULL_REPLAYS,
-                            alternative=alternative)
+                            alternative=alternative, noise=noise)
+
+    def shape_replay(name: str, variable: str, n_knots: int, noise: Noise = "white",
+                     /) -> tuple[float, ...]:
+        return shape_power(name, variable, n_knots, None, noise)
 
     checked = shape_notes(selector, final_ev.effects,
                           [(u.variable, np.array(u.knots)) for u in unexplained],
-                          replay=shape_replay, power=shape_replay)
+                          replay=shape_replay, power=shape_power)
     shapes = dict(checked.differs)
     for name, verdict in checked.unresolved.items():
         if name == "warmup" and warmup_note:  # the second warm-up's own held-out test

@@ -20,7 +20,9 @@ so it is measured on replays of the runs themselves:
    variable) and a replay built from them understates the ripple the bias
    terms carry; so the coefficients are refitted to the measured rates on the
    step-free temperature. The replayed rate is that model plus white noise of
-   its residuals' spread.
+   its residuals' spread (``noise="white"``), or, for the shape check's power
+   only (:mod:`._shape_check`), plus noise with its residuals' spectrum as well
+   (``noise="coloured"``, :func:`surrogate`; round 11 of issue 19).
 3. **The same readout.** The step-free temperature is re-read as the sensor
    does (refreshed every hold period, white noise σ as characterised, rounded
    to the LSB, held; 1-s block means) and smoothed like the real reading.
@@ -34,6 +36,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -49,6 +52,16 @@ REPLAY_SUBSTEP_S = 0.1
 """Sub-sample spacing (s) of the replayed readout within each 1-s block."""
 TRUTH_WINDOW_S = 121
 """Window (s, odd) of the zero-phase fit that gives the step-free temperature without a chamber."""
+
+Noise = Literal["white", "coloured"]
+"""The replayed rate's noise: ``"white"``, white noise of the model's residuals' spread
+(every null replay); ``"coloured"``, per run a phase-randomised surrogate of the model's
+residuals (:func:`surrogate`: the same variance and autocorrelation). A MEMS gyro's bias
+wanders (bias instability, rate random walk), so its residuals are correlated over
+minutes: on white replays a spline's extra columns are dearer held out than on the runs,
+and the shape check's power is overstated (round 10 of issue 19). On the null replays
+coloured noise was tried and lowered what the readout alone buys a lag, so there white
+noise is kept: the larger null (docs/findings.md §6, rounds 10 and 11)."""
 
 
 @dataclass(frozen=True)
@@ -142,13 +155,27 @@ class Alternative:
     columns: Columns
 
 
+def surrogate(residual: FloatArray, rng: np.random.Generator) -> FloatArray:
+    """A phase-randomised surrogate of ``residual`` (its mean removed): the same amplitude
+    spectrum, so the same variance and (circular) autocorrelation, with uniformly random
+    Fourier phases (the mean and, for an even length, the Nyquist term kept real)."""
+    r = np.asarray(residual, dtype=np.float64) - float(np.mean(residual))
+    spectrum = np.fft.rfft(r)
+    phase = rng.uniform(0.0, 2.0 * np.pi, len(spectrum))
+    phase[0] = 0.0
+    if len(r) % 2 == 0:
+        phase[-1] = 0.0
+    return np.asarray(np.fft.irfft(np.abs(spectrum) * np.exp(1j * phase), len(r)),
+                      dtype=np.float64)
+
+
 def _alternative(
     true_sel: Selector, rest: Mapping[str, float], alt: Alternative
-) -> tuple[dict[str, float], FloatArray, list[FloatArray], float]:
+) -> tuple[dict[str, float], FloatArray, list[FloatArray], float, list[FloatArray]]:
     """The generating model with the alternative (:class:`Alternative`): the other
     effects (name → nonlinear parameter, as fitted with the effect), their columns'
     coefficients, the alternative's column per run (amplitude in it), and the white
-    noise (°/s) of the model with the effect.
+    noise (°/s) and the residuals (°/s, per run) of the model with the effect.
 
     With the catalogued form itself as the only candidate, the generating model is the
     model with the effect (to rounding; tests/analysis/test_shape_power.py)."""
@@ -175,18 +202,20 @@ def _alternative(
         if best is None or miss < best[0]:
             best = (miss, np.asarray(coef[:-1], dtype=np.float64), [coef[-1] * c for c in cols])
     assert best is not None
-    return others, best[1], best[2], float(np.sqrt(full.rss / full.n))
+    return (others, best[1], best[2], float(np.sqrt(full.rss / full.n)),
+            true_sel.residuals(full.effects, full.coefficients))
 
 
 def _null_selectors(
     selector: Selector, rest: dict[str, float], readouts: Sequence[Readout], crossing_s: float,
     *, seed: int, replays: int, unresolved: Mapping[str, float] | None = None,
-    alternative: Alternative | None = None,
+    alternative: Alternative | None = None, noise: Noise = "white",
 ) -> Iterator[Selector]:
     """``replays`` readout replays of the runs with the model ``rest`` (module docstring,
     steps 1–3), each as a selector on the replayed runs; ``unresolved`` effects (name →
     nonlinear parameter) are added to the generating model where ``rest`` lacks them;
-    ``alternative``: its shape of the same size as its effect is added (:class:`Alternative`)."""
+    ``alternative``: its shape of the same size as its effect is added (:class:`Alternative`);
+    ``noise``: the replayed rate's noise (:data:`Noise`)."""
     from gyrotherm.analysis._select import _refine_all
 
     rest = {**(unresolved or {}), **rest}
@@ -204,17 +233,21 @@ def _null_selectors(
     if alternative is None:
         model = _refine_all(true_sel, true_sel.evaluate(rest))
         effects, coefficients = dict(model.effects), model.coefficients
-        noise = float(np.sqrt(model.rss / model.n))
+        sd = float(np.sqrt(model.rss / model.n))
+        residuals = (true_sel.residuals(model.effects, model.coefficients)
+                     if noise == "coloured" else [])
     else:
-        effects, coefficients, extra, noise = _alternative(true_sel, rest, alternative)
+        effects, coefficients, extra, sd, residuals = _alternative(true_sel, rest, alternative)
     readout = replay_readout(readouts)
     rng = np.random.default_rng(seed)
     for _ in range(replays):
         replayed: list[Prepared] = []
-        for p, tp, add in zip(selector.runs, true_runs, extra, strict=True):
+        for i, (p, tp, add) in enumerate(zip(selector.runs, true_runs, extra, strict=True)):
             _, x = design(tp.time_s, tp.temperature_c, tp.delta_t_c, selector.scaling,
                           effects)
-            y = x @ coefficients + add + rng.standard_normal(len(p)) * noise
+            wander = (surrogate(residuals[i], rng) if noise == "coloured"
+                      else rng.standard_normal(len(p)) * sd)
+            y = x @ coefficients + add + wander
             temp, rate_c = _smooth(reread(p.time_s, tp.temperature_c, readout, rng))
             replayed.append(replace(p, temperature_c=temp, rate_c_per_s=rate_c,
                                     delta_t_c=tau * rate_c, rate_dps=y))
@@ -296,6 +329,7 @@ def replay_shape(
     crossing_s: float, name: str, variable: str, n_knots: int, *,
     splines: Sequence[tuple[str, int]] = (), unresolved: Mapping[str, float] | None = None,
     seed: int = 0, replays: int = 2, alternative: Columns | None = None,
+    noise: Noise = "white",
 ) -> tuple[float, ...]:
     """Null ratios of the shape check (:mod:`._shape_check`) for the catalogued ``name``:
     on readout replays of the model ``effects`` — ``name`` in its catalogued form, so
@@ -313,7 +347,9 @@ def replay_shape(
     ``alternative``: the check's power instead of its null. ``name`` is generated as
     the closest of these shapes in ΔT of the same size (:class:`Alternative`), and the
     model fitted to the replays still has ``name`` in its catalogued form: the ratios
-    say whether the check tells that shape from the catalogue's at this readout."""
+    say whether the check tells that shape from the catalogue's at this readout.
+
+    ``noise``: the replayed rate's noise (:data:`Noise`)."""
     from gyrotherm.analysis._select import _refine_all
     from gyrotherm.analysis._unexplained import evaluate_with, knots_for
 
@@ -324,7 +360,8 @@ def replay_shape(
         swap = Alternative({name: generating.pop(name)}, alternative)
         unresolved = {k: v for k, v in (unresolved or {}).items() if k != name}
     for null_sel in _null_selectors(selector, generating, readouts, crossing_s, seed=seed,
-                                    replays=replays, unresolved=unresolved, alternative=swap):
+                                    replays=replays, unresolved=unresolved, alternative=swap,
+                                    noise=noise):
         fitted = dict(_refine_all(null_sel, null_sel.evaluate(dict(effects))).effects)
         rest = {k: v for k, v in fitted.items() if k != name}
         other = [(w, knots_for(null_sel.runs, w, k)) for w, k in splines]
