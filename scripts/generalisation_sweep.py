@@ -1,8 +1,8 @@
 """Does the diagnosis generalise beyond the catalogue's exact forms? A seeded sweep.
 
     .venv/bin/python scripts/generalisation_sweep.py
-        [--seeds dev|eval|eval1|shapes-dev|shapes-dev2|shapes-eval…shapes-eval12|
-                 null-eval|null-confirm…null-confirm10]
+        [--seeds dev|eval|eval1|shapes-dev|shapes-dev2|shapes-eval…shapes-eval13|
+                 null-eval|null-confirm…null-confirm11]
         [--quick] [--conditions I ...] [--cases NAME ...] [--json OUT]
 
 Per case (what is injected) × condition (sample rate, temperature readout, number
@@ -157,6 +157,11 @@ result on it; run once."""
 SHAPE_EVAL12_SEEDS = (521, 522, 523, 524, 525)
 """Twelfth evaluation set for the shapes, fixed (the commit adding this line, with
 NULL_CONFIRM10_SEEDS) after the eleventh set was scored and before any round-10 change and
+any result on it; run once. Round 10 was not adopted and never ran on it; it scores round 11
+(the shape check's power on white and coloured replays)."""
+SHAPE_EVAL13_SEEDS = (541, 542, 543, 544, 545)
+"""Thirteenth evaluation set for the shapes, fixed (the commit adding this line, with
+NULL_CONFIRM11_SEEDS) before the twelfth set was scored and before any round-12 change and
 any result on it; run once."""
 NULL_EVAL_SEEDS = tuple(range(5001, 5801))
 """Null-only evaluation (issue 19 item 1, "nulls at scale"): 800 seeds, fixed (the commit
@@ -203,10 +208,15 @@ NULL_CONFIRM9_SEEDS = tuple(range(24001, 24601))
 Seed j at CONDITIONS[j % 4]: 150 distinct devices per condition."""
 NULL_CONFIRM10_SEEDS = tuple(range(26001, 26601))
 """Fresh nulls for round 10, fixed with SHAPE_EVAL12_SEEDS before any round-10 change; run
+once (with round 11, round 10 not adopted). Seed j at CONDITIONS[j % 4]: 150 distinct
+devices per condition."""
+NULL_CONFIRM11_SEEDS = tuple(range(28001, 28601))
+"""Fresh nulls for round 12, fixed with SHAPE_EVAL13_SEEDS before any round-12 change; run
 once. Seed j at CONDITIONS[j % 4]: 150 distinct devices per condition."""
 NULL_SETS = (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS, NULL_CONFIRM2_SEEDS, NULL_CONFIRM3_SEEDS,
              NULL_CONFIRM4_SEEDS, NULL_CONFIRM5_SEEDS, NULL_CONFIRM6_SEEDS, NULL_CONFIRM7_SEEDS,
-             NULL_CONFIRM8_SEEDS, NULL_CONFIRM9_SEEDS, NULL_CONFIRM10_SEEDS)
+             NULL_CONFIRM8_SEEDS, NULL_CONFIRM9_SEEDS, NULL_CONFIRM10_SEEDS,
+             NULL_CONFIRM11_SEEDS)
 """Null-only sets: one device per diagnosis, conditions in turn."""
 SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "shapes-dev": SHAPE_DEV_SEEDS, "shapes-eval": SHAPE_EVAL_SEEDS,
@@ -221,7 +231,8 @@ SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "null-confirm7": NULL_CONFIRM7_SEEDS, "shapes-eval10": SHAPE_EVAL10_SEEDS,
              "null-confirm8": NULL_CONFIRM8_SEEDS, "shapes-eval11": SHAPE_EVAL11_SEEDS,
              "null-confirm9": NULL_CONFIRM9_SEEDS, "shapes-eval12": SHAPE_EVAL12_SEEDS,
-             "null-confirm10": NULL_CONFIRM10_SEEDS}
+             "null-confirm10": NULL_CONFIRM10_SEEDS, "shapes-eval13": SHAPE_EVAL13_SEEDS,
+             "null-confirm11": NULL_CONFIRM11_SEEDS}
 DURATION_S = 6000.0
 STEP_AT_C = 30.0
 CHECKED = {
