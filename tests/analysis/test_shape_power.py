@@ -87,6 +87,18 @@ def test_power_by_hand() -> None:
     assert v is not None and v.params["told_apart"] == 2.0 and "×0.971" in v.reason
     assert _power("hysteresis", "delta_t_c", 9, 0.9, at_085, lambda *_: (0.98, 0.975),
                   nulls=(0.85,)) is None
+    # which kind's figures: the one farther below its own need. White: ×0.96 against
+    # max(1.03 × 0.85, 1/1.03) = ×0.9709 (0.989 of it); coloured: ×0.975 against
+    # 1.03 × 0.95 = ×0.9785 (0.996 of it): the white figures, though against its smaller
+    # null the white smallest looks the better (×0.96/0.85 = 1.13)
+    def nulls_h(name: str, v: str, k: int, noise: str = "white") -> tuple[float, ...]:
+        return (0.85,) if noise == "white" else (0.95,)
+
+    v = _power("hysteresis", "delta_t_c", 9, 0.9, nulls_h,
+               lambda n, v, k, c, noise="white": (0.96, 0.99) if noise == "white"
+               else (0.975, 0.99))
+    assert v is not None and v.params["told_apart"] == 2.0
+    assert v.params["null_ratio"] == 0.85 and v.params["alternative_ratio"] == 0.96
 
 
 def test_the_note_rule_by_hand() -> None:

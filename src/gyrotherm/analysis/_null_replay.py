@@ -58,7 +58,7 @@ Noise = Literal["white", "coloured"]
 (every null replay); ``"coloured"``, per run a phase-randomised surrogate of the model's
 residuals (:func:`surrogate`: the same variance and autocorrelation). A MEMS gyro's bias
 wanders (bias instability, rate random walk), so its residuals are correlated over
-minutes: on white replays a spline's extra columns are dearer held out than on the runs,
+minutes: on white replays a spline's extra columns are cheaper held out than on the runs,
 and the shape check's power is overstated (round 10 of issue 19). On the null replays
 coloured noise was tried and lowered what the readout alone buys a lag, so there white
 noise is kept: the larger null (docs/findings.md §6, rounds 10 and 11)."""
@@ -233,11 +233,12 @@ def _null_selectors(
     if alternative is None:
         model = _refine_all(true_sel, true_sel.evaluate(rest))
         effects, coefficients = dict(model.effects), model.coefficients
-        sd = float(np.sqrt(model.rss / model.n))
+        sd_dps = float(np.sqrt(model.rss / model.n))
         residuals = (true_sel.residuals(model.effects, model.coefficients)
                      if noise == "coloured" else [])
     else:
-        effects, coefficients, extra, sd, residuals = _alternative(true_sel, rest, alternative)
+        effects, coefficients, extra, sd_dps, residuals = _alternative(true_sel, rest,
+                                                                       alternative)
     readout = replay_readout(readouts)
     rng = np.random.default_rng(seed)
     for _ in range(replays):
@@ -246,7 +247,7 @@ def _null_selectors(
             _, x = design(tp.time_s, tp.temperature_c, tp.delta_t_c, selector.scaling,
                           effects)
             wander = (surrogate(residuals[i], rng) if noise == "coloured"
-                      else rng.standard_normal(len(p)) * sd)
+                      else rng.standard_normal(len(p)) * sd_dps)
             y = x @ coefficients + add + wander
             temp, rate_c = _smooth(reread(p.time_s, tp.temperature_c, readout, rng))
             replayed.append(replace(p, temperature_c=temp, rate_c_per_s=rate_c,

@@ -174,7 +174,9 @@ class ShapeNotes:
     """Effect → its ``shape:<effect>`` verdict, params ``ratio`` (the runs'), ``null_ratio``
     (the exact-form replays' largest), and ``improved_runs`` (a spline better held out
     but not beyond the replays) or ``alternative_ratio`` (the alternative's replays'
-    smallest), ``told_apart`` and ``replays`` (the check's power, :func:`_power`)."""
+    smallest), ``told_apart`` and ``replays`` (the check's power, :func:`_power`: over
+    both noises, ``null_ratio`` and ``alternative_ratio`` those of the one farther from
+    told apart)."""
 
 
 class Replay(Protocol):
@@ -223,7 +225,9 @@ def _power(
     text, columns = ALTERNATIVES[name]
     floor = 1.0 / (1.0 + SHAPE_MARGIN) if name in MEMORY else 1.0 + SHAPE_MARGIN
     told = total = 0
-    worst: tuple[float, float] | None = None  # (alternative's smallest, its kind's null)
+    # the kind farther from told apart: (its alternative's smallest over its need, that
+    # smallest, its exact-form replays' largest)
+    worst: tuple[float, float, float] | None = None
     parts = []
     for noise in POWER_NOISES:
         kind_nulls = (tuple(nulls) if noise == "white" and nulls
@@ -234,8 +238,8 @@ def _power(
         kind_told = sum(1 for a in alts if passes(name, a, kind_nulls))
         told, total = told + kind_told, total + len(alts)
         need = max((1.0 + SHAPE_MARGIN) * max(kind_nulls), floor)
-        if worst is None or min(alts) / need < worst[0] / worst[1]:
-            worst = (min(alts), max(kind_nulls))
+        if worst is None or min(alts) / need < worst[0]:
+            worst = (min(alts) / need, min(alts), max(kind_nulls))
         parts.append(
             f"with {_NOISE_TEXT[noise]}, ×{min(alts):.3f}–×{max(alts):.3f} against a need of "
             f"×{need:.3f} (×{1.0 + SHAPE_MARGIN:.2f} above the ×{max(kind_nulls):.3f} "
@@ -246,7 +250,7 @@ def _power(
     assert worst is not None
     return NotResolvable(
         f"shape:{name}",
-        {"ratio": ratio, "null_ratio": worst[1], "alternative_ratio": worst[0],
+        {"ratio": ratio, "null_ratio": worst[2], "alternative_ratio": worst[1],
          "told_apart": float(told), "replays": float(total)},
         f"{FORMS[name]} cannot be told from {text} at this readout: on readout replays "
         f"with {text} of the same size in its place, a linear spline in {v} beats "
