@@ -13,6 +13,7 @@ import pytest
 from gyrotherm.analysis import SynthConfig, diagnose
 from gyrotherm.analysis._null_replay import Alternative, _alternative, replay_shape, surrogate
 from gyrotherm.analysis._prep import characterise
+from gyrotherm.analysis._resolve import NotResolvable
 from gyrotherm.analysis._score import Selector
 from gyrotherm.analysis._shape_check import SHAPE_MARGIN, PowerReplay, _power, passes
 from gyrotherm.analysis.synth._variants import variant_runs
@@ -169,15 +170,21 @@ def test_an_exact_memory_effect_gets_no_note(effect: str) -> None:
     assert effect in found and found[effect].shape == ""
 
 
-def test_abs_dt_named_gradient_quadratic_at_the_corner_is_declared_by_the_power() -> None:
-    # shapes-dev2 seed 48 at the corner: |ΔT| is named c·ΔT², the spline in its place is not
-    # better held out, and on replays with k·|ΔT| of the same size the check cannot tell
-    # them apart either: the shape is declared not resolvable at this readout
-    runs, _ = variant_runs(CORNER_CFG, shapes={"abs_dt": {}}, n_runs=3, seed=48)
+def _abs_dt_declared(cfg: SynthConfig, seed: int) -> NotResolvable:
+    """|ΔT| on 3 runs of ``cfg``: named c·ΔT² alone, without a note; its shape verdict."""
+    runs, _ = variant_runs(cfg, shapes={"abs_dt": {}}, n_runs=3, seed=seed)
     d = diagnose(runs, simulate=False)
     (f,) = d.findings
     assert f.effect == "gradient_quadratic" and f.shape == ""
     (v,) = [v for v in d.not_resolvable if v.effect == "shape:gradient_quadratic"]
+    return v
+
+
+def test_abs_dt_named_gradient_quadratic_at_the_corner_is_declared_by_the_power() -> None:
+    # shapes-dev2 seed 48 at the corner: |ΔT| is named c·ΔT², the spline in its place is not
+    # better held out, and on replays with k·|ΔT| of the same size the check cannot tell
+    # them apart either: the shape is declared not resolvable at this readout
+    v = _abs_dt_declared(CORNER_CFG, 48)
     assert v.params["told_apart"] < v.params["replays"] == 4.0
     assert v.params["alternative_ratio"] < (1.0 + SHAPE_MARGIN) * v.params["null_ratio"]
     assert v.params["ratio"] < 1.0 + SHAPE_MARGIN
@@ -249,11 +256,7 @@ def test_abs_dt_told_apart_only_on_white_replays_is_declared() -> None:
     # tells the shapes apart (×1.11 against ×1.03), so round 9 said nothing; on replays
     # whose noise has the residuals' spectrum (the generator's gyro has bias instability
     # and rate random walk) one of two is not: the shape is declared not resolvable
-    runs, _ = variant_runs(HALF, shapes={"abs_dt": {}}, n_runs=3, seed=502)
-    d = diagnose(runs, simulate=False)
-    (f,) = d.findings
-    assert f.effect == "gradient_quadratic" and f.shape == ""
-    (v,) = [v for v in d.not_resolvable if v.effect == "shape:gradient_quadratic"]
+    v = _abs_dt_declared(HALF, 502)
     assert v.params["replays"] == 4.0 and v.params["told_apart"] == 3.0
     assert v.params["ratio"] < 1.0
     white, coloured = v.reason.split("; with noise of the residuals' spectrum")
