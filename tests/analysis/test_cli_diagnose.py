@@ -112,3 +112,26 @@ def test_the_summary_names_an_unexplained_structure_and_its_caveat(
     err = capsys.readouterr().err
     assert (f"diagnose: found unexplained in time_since_power_on_s (gain {u['gain']:.2f}; "
             "not told apart from delta_t_c)") in err
+
+
+def test_the_summary_says_when_a_findings_shape_is_not_resolvable(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # shapes-dev2 seed 48 at the corner: |ΔT| named c·ΔT², its shape declared not
+    # resolvable (tests/analysis/test_shape_power.py); the summary line says so beside the
+    # finding, not only the progress lines above it
+    from gyrotherm.analysis.synth._variants import variant_runs
+
+    runs, _ = variant_runs(SynthConfig(duration_s=6000.0, rate_hz=10.0, readout_lsb_c=1.0,
+                                       readout_period_s=1.3),
+                           shapes={"abs_dt": {}}, n_runs=3, seed=48)
+    paths = [str(write_run(r, tmp_path / f"{r.name}.csv")) for r in runs]
+    out = tmp_path / "out.json"
+    args = _parser().parse_args(["diagnose", *paths, "--no-simulation", "--json", str(out)])
+    assert args.func(args) == 0
+    data = json.loads(out.read_text())
+    (f,) = data["findings"]
+    assert f["effect"] == "gradient_quadratic"
+    assert "shape:gradient_quadratic" in {v["effect"] for v in data["not_resolvable"]}
+    err = capsys.readouterr().err
+    assert (f"diagnose: found gradient_quadratic (gain {f['gain']:.2f}; its shape is not "
+            "resolvable at this readout); extended") in err

@@ -101,7 +101,14 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     if args.calibration:
         _write_calibration(args, runs, result, say)
     if not quiet:
-        found = ", ".join([f"{f.effect} (gain {f.gain:.2f})" for f in result.findings] + [
+        shape_unresolved = {v.effect.removeprefix("shape:") for v in result.not_resolvable
+                            if v.effect.startswith("shape:")}
+        found = ", ".join([
+            f"{f.effect} (gain {f.gain:.2f}"
+            + ("; its shape differs" if f.shape else "")
+            + ("; its shape is not resolvable at this readout"
+               if f.effect in shape_unresolved else "") + ")"
+            for f in result.findings] + [
             f"unexplained in {u.variable} (gain {u.gain:.2f}"
             + (f"; not told apart from {u.rivals})" if u.rivals else ")")
             for u in result.unexplained]) or "nothing"
