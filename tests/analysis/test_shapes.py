@@ -98,6 +98,10 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
         assert not set(shape_set) & before
         assert not set(null_set) & {*before, *shape_set}
         before = {*before, *shape_set, *null_set}
+        if shapes == "SHAPE_EVAL13_SEEDS":  # the third shapes development set, fixed
+            # after round 11, overlaps no evaluation or confirmation set
+            assert sweep.SHAPE_DEV3_SEEDS == tuple(range(561, 581))
+            assert not set(sweep.SHAPE_DEV3_SEEDS) & before
         if shapes == "SHAPE_EVAL8_SEEDS":  # the 0.5 degC development nulls, fixed after
             # round 6b, overlap no evaluation or confirmation set
             assert not set(sweep.NULL_DEV2_SEEDS) & before
