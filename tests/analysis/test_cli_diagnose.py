@@ -6,6 +6,7 @@ import argparse
 import json
 import re
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -94,22 +95,29 @@ def test_cli_errors_name_the_problem(tmp_path: Path,
         args.func(args)
 
 
-def test_the_summary_names_an_unexplained_structure_and_its_caveat(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    # the ninth evaluation set's |ΔT| at the corner (seed 464, a used set): the only finding
-    # is a structure in time, ΔT not told apart; the summary line must not say "nothing"
+def _corner_abs_dt(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                   seed: int) -> tuple[dict[str, Any], str]:
+    """|ΔT| on 3 runs at the sweep's 1 °C / 1.3 s corner, written as run files and
+    diagnosed through the CLI without the simulator: the JSON and stderr."""
     from gyrotherm.analysis.synth._variants import variant_runs
 
     runs, _ = variant_runs(SynthConfig(duration_s=6000.0, rate_hz=10.0, readout_lsb_c=1.0,
                                        readout_period_s=1.3),
-                           shapes={"abs_dt": {}}, n_runs=3, seed=464)
+                           shapes={"abs_dt": {}}, n_runs=3, seed=seed)
     paths = [str(write_run(r, tmp_path / f"{r.name}.csv")) for r in runs]
     out = tmp_path / "out.json"
     args = _parser().parse_args(["diagnose", *paths, "--no-simulation", "--json", str(out)])
     assert args.func(args) == 0
-    (u,) = json.loads(out.read_text())["findings"]
+    return json.loads(out.read_text()), capsys.readouterr().err
+
+
+def test_the_summary_names_an_unexplained_structure_and_its_caveat(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # the ninth evaluation set's |ΔT| at the corner (seed 464, a used set): the only finding
+    # is a structure in time, ΔT not told apart; the summary line must not say "nothing"
+    data, err = _corner_abs_dt(tmp_path, capsys, 464)
+    (u,) = data["findings"]
     assert u["params"]["variable"] == "time_since_power_on_s"
-    err = capsys.readouterr().err
     assert (f"diagnose: found unexplained in time_since_power_on_s (gain {u['gain']:.2f}; "
             "not told apart from delta_t_c)") in err
 
@@ -119,19 +127,9 @@ def test_the_summary_says_when_a_findings_shape_is_not_resolvable(
     # shapes-dev2 seed 48 at the corner: |ΔT| named c·ΔT², its shape declared not
     # resolvable (tests/analysis/test_shape_power.py); the summary line says so beside the
     # finding, not only the progress lines above it
-    from gyrotherm.analysis.synth._variants import variant_runs
-
-    runs, _ = variant_runs(SynthConfig(duration_s=6000.0, rate_hz=10.0, readout_lsb_c=1.0,
-                                       readout_period_s=1.3),
-                           shapes={"abs_dt": {}}, n_runs=3, seed=48)
-    paths = [str(write_run(r, tmp_path / f"{r.name}.csv")) for r in runs]
-    out = tmp_path / "out.json"
-    args = _parser().parse_args(["diagnose", *paths, "--no-simulation", "--json", str(out)])
-    assert args.func(args) == 0
-    data = json.loads(out.read_text())
+    data, err = _corner_abs_dt(tmp_path, capsys, 48)
     (f,) = data["findings"]
     assert f["effect"] == "gradient_quadratic"
     assert "shape:gradient_quadratic" in {v["effect"] for v in data["not_resolvable"]}
-    err = capsys.readouterr().err
     assert (f"diagnose: found gradient_quadratic (gain {f['gain']:.2f}; its shape is not "
             "resolvable at this readout); extended") in err

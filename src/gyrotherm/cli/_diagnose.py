@@ -101,18 +101,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     if args.calibration:
         _write_calibration(args, runs, result, say)
     if not quiet:
-        shape_unresolved = {v.effect.removeprefix("shape:") for v in result.not_resolvable
-                            if v.effect.startswith("shape:")}
-        found = ", ".join([
-            f"{f.effect} (gain {f.gain:.2f}"
-            + ("; its shape differs" if f.shape else "")
-            + ("; its shape is not resolvable at this readout"
-               if f.effect in shape_unresolved else "") + ")"
-            for f in result.findings] + [
-            f"unexplained in {u.variable} (gain {u.gain:.2f}"
-            + (f"; not told apart from {u.rivals})" if u.rivals else ")")
-            for u in result.unexplained]) or "nothing"
-        print(f"diagnose: found {found}; extended {result.extended.name}: held-out RMS "
+        print(f"diagnose: found {_found(result)}; extended {result.extended.name}: held-out RMS "
               f"{result.baseline_heldout_rms_dps:.4g} → {result.extended_heldout_rms_dps:.4g} °/s "
               f"(gain {result.gain:.2f})", file=sys.stderr)
         if result.floors:  # what it could not have seen (analysis/_floor.py)
@@ -120,6 +109,25 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
             print(f"diagnose: not resolvable at this readout: a structure gaining less than "
                   f"{floors} (held out, over {result.extended.name})", file=sys.stderr)
     return loaded.exit_status  # 2 when a log failed (diagnosed on the others)
+
+
+def _found(result: Any) -> str:
+    """The summary's list: each finding and each unexplained structure with its gain and
+    what the diagnosis says of it (its shape; the variables it is not told apart from)."""
+    shape_unresolved = {v.effect.removeprefix("shape:") for v in result.not_resolvable
+                        if v.effect.startswith("shape:")}
+    items = []
+    for f in result.findings:
+        said = [f"gain {f.gain:.2f}"]
+        if f.shape:
+            said.append("its shape differs")
+        if f.effect in shape_unresolved:
+            said.append("its shape is not resolvable at this readout")
+        items.append(f"{f.effect} ({'; '.join(said)})")
+    for u in result.unexplained:
+        said = [f"gain {u.gain:.2f}"] + ([f"not told apart from {u.rivals}"] if u.rivals else [])
+        items.append(f"unexplained in {u.variable} ({'; '.join(said)})")
+    return ", ".join(items) or "nothing"
 
 
 def _write_calibration(args: argparse.Namespace, runs: Sequence[Run], result: Any,
