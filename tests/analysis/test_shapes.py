@@ -82,8 +82,8 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
     before7 = {*earlier, *sweep.SHAPE_EVAL6_SEEDS, *sweep.NULL_CONFIRM4_SEEDS}
     assert not set(sweep.SHAPE_EVAL7_SEEDS) & before7
     assert not set(sweep.NULL_CONFIRM5_SEEDS) & {*before7, *sweep.SHAPE_EVAL7_SEEDS}
-    # rounds 6b to 12: each round's shape set and null set, fixed before the round, overlap
-    # nothing fixed or used before them (nor each other)
+    # rounds 6b to 12 (two sets for round 12): each round's shape set and null set, fixed
+    # before the round, overlap nothing fixed or used before them (nor each other)
     before = before7
     for shapes, first, nulls, start in (
             ("SHAPE_EVAL8_SEEDS", 441, "NULL_CONFIRM6_SEEDS", 18001),
@@ -91,7 +91,8 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
             ("SHAPE_EVAL10_SEEDS", 481, "NULL_CONFIRM8_SEEDS", 22001),
             ("SHAPE_EVAL11_SEEDS", 501, "NULL_CONFIRM9_SEEDS", 24001),
             ("SHAPE_EVAL12_SEEDS", 521, "NULL_CONFIRM10_SEEDS", 26001),
-            ("SHAPE_EVAL13_SEEDS", 541, "NULL_CONFIRM11_SEEDS", 28001)):
+            ("SHAPE_EVAL13_SEEDS", 541, "NULL_CONFIRM11_SEEDS", 28001),
+            ("SHAPE_EVAL14_SEEDS", 601, "NULL_CONFIRM12_SEEDS", 30001)):
         shape_set, null_set = getattr(sweep, shapes), getattr(sweep, nulls)
         assert shape_set == tuple(range(first, first + 5))
         assert null_set == tuple(range(start, start + 600))
@@ -102,6 +103,7 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
             # after round 11, overlaps no evaluation or confirmation set
             assert sweep.SHAPE_DEV3_SEEDS == tuple(range(561, 581))
             assert not set(sweep.SHAPE_DEV3_SEEDS) & before
+            before |= set(sweep.SHAPE_DEV3_SEEDS)  # and no later set overlaps it
         if shapes == "SHAPE_EVAL8_SEEDS":  # the 0.5 degC development nulls, fixed after
             # round 6b, overlap no evaluation or confirmation set
             assert not set(sweep.NULL_DEV2_SEEDS) & before
