@@ -38,6 +38,10 @@ Scoring against the injected truth:
   the totals; no verdict stands behind it, so that count is apart from the verdicts'). When
   the expected structure is found as well, that structure is a false alarm as before. A
   rule from round 9 on (SHAPE_EVAL11_SEEDS); older sets re-run are scored by it too;
+  from round 12 on (SHAPE_EVAL14_SEEDS) likewise a catalogued finding whose
+  ``not_told_from`` names the expected catalogued effect (another effect does as well alone
+  held out, :mod:`gyrotherm.analysis._catalogued_rivals`): a declared miss, not a false
+  alarm, unless the expected effect is found as well;
 * **parameter error**: |estimate / truth − 1| of each found effect's checked
   parameter (the hidden-effect tests' list); for the wide hysteresis the
   amplitude, for the warm-ups the amplitude at power-on (A₁ + A₂; A/(1 + e^(−t½/s))).
@@ -387,6 +391,11 @@ def run_case(case: Case, cond: Condition, seed: int) -> dict[str, Any]:
             continue
         names.add(f"unexplained:{u.variable}[{lo:.3g}, {hi:.3g}]")
     expected = set(case.expected)
+    for f in d.findings:  # a catalogued name not told apart from the expected one (round 12)
+        rival = sorted(expected & set(f.not_told_from))
+        if rival and f.effect in names and f.effect not in expected:
+            names.discard(f.effect)
+            stated.append((rival, f.effect))
     for rival, name in stated:  # a miss the diagnosis declared, not an alarm; but when
         if expected & names >= set(rival):  # the expected structure is found anyway,
             names.add(name)                 # the structure is a second name: an alarm
@@ -435,7 +444,10 @@ def run_case(case: Case, cond: Condition, seed: int) -> dict[str, Any]:
                                             if e.startswith("unexplained:")}
                                            if proxy_unresolved else set())
                                         | ((expected - names) & set(variable_unresolved))),
-        "variable_unresolved": sorted((expected - names) & set(variable_unresolved)),
+        "variable_unresolved": sorted(e for e in (expected - names) & set(variable_unresolved)
+                                      if e.startswith("unexplained:")),
+        "effect_unresolved": sorted(e for e in (expected - names) & set(variable_unresolved)
+                                    if not e.startswith("unexplained:")),
         "proxy_shape_unresolved": proxy_unresolved,
         "exact_form_shape_notes": exact_notes,
         "parameter_errors": errors,
@@ -627,7 +639,9 @@ def _totals(rows: Sequence[dict[str, Any]]) -> list[str]:
         f"the nearest catalogued effect named with its shape declared not resolvable: "
         f"{sum(len(r.get('proxy_shape_unresolved', [])) for r in rows)}; a structure "
         f"named in another variable, stated as not told apart from the expected one, no "
-        f"verdict: {sum(len(r.get('variable_unresolved', [])) for r in rows)})",
+        f"verdict: {sum(len(r.get('variable_unresolved', [])) for r in rows)}; a catalogued "
+        f"effect named, stated as not told apart from the expected one: "
+        f"{sum(len(r.get('effect_unresolved', [])) for r in rows)})",
         f"- a note that the shape differs on a case that injects the catalogue's exact "
         f"formula: {sum(len(r.get('exact_form_shape_notes', [])) for r in rows)} of "
         f"{sum(len(r['found']) for r in rows if not _shaped(r))} such findings",

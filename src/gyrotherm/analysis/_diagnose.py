@@ -24,7 +24,9 @@
    catalogued finding whose "shape differs" note the readout alone would produce keeps its
    name without the note and gets a ``shape:<effect>`` verdict, :mod:`._shape_check`); state
    the detection floor, the held-out gain below which a structure in each variable is not
-   resolvable at this readout (:mod:`._floor`); refit the
+   resolvable at this readout (:mod:`._floor`); name beside each finding the catalogued
+   effects that do as well alone held out, ``not_told_from`` (:mod:`._catalogued_rivals`);
+   refit the
    extended model, replay it through the extended simulator, and report
    (schema ``gyrotherm.diagnosis/1``).
 4. Optionally (:func:`export_calibration`) write the chosen extended model as a
@@ -47,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from gyrotherm._errors import CalibrationError, ConfigError
+from gyrotherm.analysis._catalogued_rivals import catalogued_rivals, rival_text
 from gyrotherm.analysis._compare import (
     DEFAULT_REPLAYS,
     MIN_REPLAYS,
@@ -100,12 +103,23 @@ class Finding:
     shape: str = ""
     """Non-empty when the data's structure in this effect's variable is not the
     catalogued form (:mod:`._shape_check`): the note saying how the shape differs."""
+    not_told_from: Mapping[str, float] = field(default_factory=dict)
+    """Other catalogued effects that do as well alone held out (:mod:`._catalogued_rivals`,
+    effect → its held-out gain alone): which of them this is is not resolvable at this
+    readout."""
+
+    @property
+    def rivals(self) -> str:
+        """``not_told_from``'s effects, "cubic or hysteresis" ("" when none)."""
+        return " or ".join(sorted(self.not_told_from))
 
     def to_dict(self) -> dict[str, Any]:
         out = {"effect": self.effect, "params": dict(self.params), "evidence": self.evidence,
                "heldout_rms_dps": self.heldout_rms_dps, "gain": self.gain}
         if self.shape:
             out["shape_differs"] = self.shape
+        if self.not_told_from:
+            out["not_told_from"] = dict(self.not_told_from)
         return out
 
 
@@ -313,18 +327,26 @@ def diagnose(
     extended = selector.model(final_ev)
     params = extended.params()
     findings = []
+    rivals = catalogued_rivals(base_ev, selection.alone, list(final_ev.effects),
+                               [v.effect for v in verdicts], n_runs=len(runs), margin=margin)
     for name in final_ev.effects:
         rest = {k: v for k, v in final_ev.effects.items() if k != name}
         drop = selector.evaluate(rest) if rest else None
         drop_gain = drop.heldout_rms_dps / final_ev.heldout_rms_dps if drop else None
         alone = selection.alone[name]
+        rival = rivals.get(name, {})
         findings.append(Finding(
             effect=name,
             params=params[name],
-            evidence=_evidence(name, selection, drop_gain, len(runs)),
+            evidence=_evidence(name, selection, drop_gain, len(runs)) + rival_text(rival),
             heldout_rms_dps=alone.heldout_rms_dps,
             gain=base_ev.heldout_rms_dps / alone.heldout_rms_dps,
+            not_told_from=rival,
         ))
+        if rival:
+            notes.append(f"{name}: which catalogued effect it is is not resolvable at this "
+                         f"readout: {' or '.join(sorted(rival))} does as well alone held out")
+            say(notes[-1])
     def shape_power(name: str, variable: str, n_knots: int, alternative: Columns | None,
                     noise: Noise = "white", /) -> tuple[float, ...]:
         return replay_shape(selector, dict(final_ev.effects), readouts, limit.lsb_crossing_s,

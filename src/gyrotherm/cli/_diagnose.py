@@ -113,7 +113,8 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
 
 def _found(result: Any) -> str:
     """The summary's list: each finding and each unexplained structure with its gain and
-    what the diagnosis says of it (its shape; the variables it is not told apart from)."""
+    what the diagnosis says of it (its shape; the effects or variables it is not told apart
+    from)."""
     shape_unresolved = {v.effect.removeprefix("shape:") for v in result.not_resolvable
                         if v.effect.startswith("shape:")}
     items = []
@@ -123,6 +124,8 @@ def _found(result: Any) -> str:
             said.append("its shape differs")
         if f.effect in shape_unresolved:
             said.append("its shape is not resolvable at this readout")
+        if f.rivals:
+            said.append(f"not told apart from {f.rivals}")
         items.append(f"{f.effect} ({'; '.join(said)})")
     for u in result.unexplained:
         said = [f"gain {u.gain:.2f}"] + ([f"not told apart from {u.rivals}"] if u.rivals else [])
