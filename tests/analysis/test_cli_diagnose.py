@@ -95,15 +95,15 @@ def test_cli_errors_name_the_problem(tmp_path: Path,
         args.func(args)
 
 
-def _corner_abs_dt(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                   seed: int) -> tuple[dict[str, Any], str]:
-    """|ΔT| on 3 runs at the sweep's 1 °C / 1.3 s corner, written as run files and
-    diagnosed through the CLI without the simulator: the JSON and stderr."""
+def _corner_abs_dt(tmp_path: Path, capsys: pytest.CaptureFixture[str], seed: int,
+                   shape: str = "abs_dt") -> tuple[dict[str, Any], str]:
+    """|ΔT| (or ``shape``) on 3 runs at the sweep's 1 °C / 1.3 s corner, written as run
+    files and diagnosed through the CLI without the simulator: the JSON and stderr."""
     from gyrotherm.analysis.synth._variants import variant_runs
 
     runs, _ = variant_runs(SynthConfig(duration_s=6000.0, rate_hz=10.0, readout_lsb_c=1.0,
                                        readout_period_s=1.3),
-                           shapes={"abs_dt": {}}, n_runs=3, seed=seed)
+                           shapes={shape: {}}, n_runs=3, seed=seed)
     paths = [str(write_run(r, tmp_path / f"{r.name}.csv")) for r in runs]
     out = tmp_path / "out.json"
     args = _parser().parse_args(["diagnose", *paths, "--no-simulation", "--json", str(out)])
@@ -133,3 +133,14 @@ def test_the_summary_says_when_a_findings_shape_is_not_resolvable(
     assert "shape:gradient_quadratic" in {v["effect"] for v in data["not_resolvable"]}
     assert (f"diagnose: found gradient_quadratic (gain {f['gain']:.2f}; its shape is not "
             "resolvable at this readout); extended") in err
+
+
+def test_the_summary_says_which_catalogued_effects_a_finding_is_not_told_from(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # shapes-dev3 seed 566 at the corner: a rate-dependent hysteresis named a cubic, which
+    # hysteresis alone does as well as (tests/analysis/test_catalogued_rivals.py)
+    data, err = _corner_abs_dt(tmp_path, capsys, 566, shape="rate_hysteresis")
+    (f,) = [f for f in data["findings"] if f["effect"] == "cubic"]
+    assert set(f["not_told_from"]) == {"hysteresis"}
+    assert (f"diagnose: found cubic (gain {f['gain']:.2f}; not told apart from "
+            "hysteresis)") in err
