@@ -1,8 +1,8 @@
 """Does the diagnosis generalise beyond the catalogue's exact forms? A seeded sweep.
 
     .venv/bin/python scripts/generalisation_sweep.py
-        [--seeds dev|eval|eval1|shapes-dev|shapes-dev2|shapes-dev3|shapes-eval…shapes-eval14|
-                 null-eval|null-confirm…null-confirm12]
+        [--seeds dev|eval|eval1|shapes-dev|shapes-dev2|shapes-dev3|shapes-eval…shapes-eval15|
+                 null-eval|null-confirm…null-confirm13]
         [--quick] [--conditions I ...] [--cases NAME ...] [--json OUT]
 
 Per case (what is injected) × condition (sample rate, temperature readout, number
@@ -177,6 +177,10 @@ SHAPE_EVAL14_SEEDS = (601, 602, 603, 604, 605)
 """Fourteenth evaluation set for the shapes, fixed (the commit adding this line, with
 NULL_CONFIRM12_SEEDS) after the thirteenth set was scored and before any round-12 change and
 any result on it; run once."""
+SHAPE_EVAL15_SEEDS = (621, 622, 623, 624, 625)
+"""Fifteenth evaluation set for the shapes, fixed (the commit adding this line, with
+NULL_CONFIRM13_SEEDS) after the fourteenth set was scored, before any result on it and before
+any change after round 12: a second fresh test of round 12's method; run once."""
 NULL_EVAL_SEEDS = tuple(range(5001, 5801))
 """Null-only evaluation (issue 19 item 1, "nulls at scale"): 800 seeds, fixed (the commit
 adding this line) before any result on them was seen; never used while developing; run
@@ -232,10 +236,13 @@ NULL_CONFIRM12_SEEDS = tuple(range(30001, 30601))
 """Fresh nulls for round 12, fixed with SHAPE_EVAL14_SEEDS after the thirteenth set was scored
 and before any round-12 change; run once. Seed j at CONDITIONS[j % 4]: 150 distinct devices
 per condition."""
+NULL_CONFIRM13_SEEDS = tuple(range(32001, 32601))
+"""Fresh nulls for the same method, fixed with SHAPE_EVAL15_SEEDS; run once. Seed j at
+CONDITIONS[j % 4]: 150 distinct devices per condition."""
 NULL_SETS = (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS, NULL_CONFIRM2_SEEDS, NULL_CONFIRM3_SEEDS,
              NULL_CONFIRM4_SEEDS, NULL_CONFIRM5_SEEDS, NULL_CONFIRM6_SEEDS, NULL_CONFIRM7_SEEDS,
              NULL_CONFIRM8_SEEDS, NULL_CONFIRM9_SEEDS, NULL_CONFIRM10_SEEDS,
-             NULL_CONFIRM11_SEEDS, NULL_CONFIRM12_SEEDS)
+             NULL_CONFIRM11_SEEDS, NULL_CONFIRM12_SEEDS, NULL_CONFIRM13_SEEDS)
 """Null-only sets: one device per diagnosis, conditions in turn."""
 SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "shapes-dev": SHAPE_DEV_SEEDS, "shapes-eval": SHAPE_EVAL_SEEDS,
@@ -252,7 +259,8 @@ SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "null-confirm9": NULL_CONFIRM9_SEEDS, "shapes-eval12": SHAPE_EVAL12_SEEDS,
              "null-confirm10": NULL_CONFIRM10_SEEDS, "shapes-eval13": SHAPE_EVAL13_SEEDS,
              "null-confirm11": NULL_CONFIRM11_SEEDS, "shapes-dev3": SHAPE_DEV3_SEEDS,
-             "shapes-eval14": SHAPE_EVAL14_SEEDS, "null-confirm12": NULL_CONFIRM12_SEEDS}
+             "shapes-eval14": SHAPE_EVAL14_SEEDS, "null-confirm12": NULL_CONFIRM12_SEEDS,
+             "shapes-eval15": SHAPE_EVAL15_SEEDS, "null-confirm13": NULL_CONFIRM13_SEEDS}
 DURATION_S = 6000.0
 STEP_AT_C = 30.0
 CHECKED = {
