@@ -275,10 +275,11 @@ def test_abs_dt_is_unexplained_in_delta_t_and_makes_gradient_quadratic_redundant
 
 
 def test_abs_dt_named_gradient_quadratic_carries_the_shape_note() -> None:
-    # round 5 dev seed 43 at the corner (1 °C / 1.3 s, 3 runs): |ΔT| is named gradient²
+    # round 5 dev seed 41 at the corner (1 °C / 1.3 s, 3 runs): |ΔT| is named gradient²
     # (the nearest catalogued form); the spline in ΔT in its place is better held out, so
-    # the finding says the shape differs
-    runs, truth = variant_runs(CORNER_CFG, shapes={"abs_dt": {}}, n_runs=3, seed=43)
+    # the finding says the shape differs. (Seed 43, this test's device until round 12, is
+    # now named unexplained in ΔT: the knot count chosen held out gains ×1.86.)
+    runs, truth = variant_runs(CORNER_CFG, shapes={"abs_dt": {}}, n_runs=3, seed=41)
     d = diagnose(runs, simulate=False)
     (f,) = d.findings
     assert f.effect == "gradient_quadratic" and f.gain > 1.2

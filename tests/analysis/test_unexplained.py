@@ -188,13 +188,13 @@ def test_the_knot_count_is_the_best_held_out_of_those_bic_supports() -> None:
 
 
 def _ramp_runs(holds_s: list[float], flips: list[float], seed: int,
-               warmup_dps: float = 0.0) -> list[Prepared]:
+               warmup_dps: float = 0.0, dt_error_c: float = 0.15) -> list[Prepared]:
     """3000-s runs: a hold of ``holds_s[r]`` at 25 °C, a smooth (raised-cosine) ramp of
     flip·15 °C over 1000 s, a hold, the ramp back, a hold to the end. The bias is
     0.03·|G|, G = 120·dT/dt the true gradient (even in it, which the paper's terms cannot
     follow), plus white noise σ = 0.003 °/s; the runs' ΔT estimate is G plus an error of
-    σ = 0.15 °C (a coarse readout's). ``warmup_dps``: a second structure, a warm-up of that
-    size, exp(−t/400 s); ramps of 15·|flip| °C."""
+    σ = ``dt_error_c`` (0.15 °C: a coarse readout's). ``warmup_dps``: a second structure,
+    a warm-up of that size, exp(−t/400 s); ramps of 15·|flip| °C."""
     rng = np.random.default_rng(seed)
     t = np.arange(3000.0)
     out = []
@@ -205,7 +205,7 @@ def _ramp_runs(holds_s: list[float], flips: list[float], seed: int,
         g = 120.0 * np.gradient(temp)
         rate = (0.001 * temp + 0.03 * np.abs(g) + warmup_dps * np.exp(-t / 400.0)
                 + 0.003 * rng.standard_normal(len(t)))
-        dt = g + 0.15 * rng.standard_normal(len(t))
+        dt = g + dt_error_c * rng.standard_normal(len(t))
         out.append(Prepared(name=f"r{r}", time_s=t, temperature_c=temp, rate_c_per_s=g / 120,
                             delta_t_c=dt, chamber_c=None, rate_dps=rate,
                             counts=np.ones(len(t)), direction=np.zeros(len(t))))
@@ -220,13 +220,20 @@ def _search(runs: list[Prepared]) -> Search:
 
 def test_a_structure_is_not_told_apart_from_a_variable_the_runs_move_with_it() -> None:
     # every run the same profile, its ramps mirror images: |G| is the same function of T
-    # on every run (and of time), so a spline in T does nearly as well as one in ΔT
-    (u,) = _search(_ramp_runs([300.0, 300.0, 300.0], [1.0, 1.0, 1.0], seed=5)).unexplained
-    assert u.variable == "delta_t_c" and u.gain > 1.5
-    assert set(u.not_told_from) == {"temperature_c"}
-    assert u.gain / u.not_told_from["temperature_c"] < 1.10  # within the margin
+    # on every run (and of time). With the ΔT estimate's error of a coarse readout
+    # (σ = 0.3 °C) a spline in T does as well as one in ΔT, and whichever is reported lists
+    # the other as not told apart (within the margin)
+    (u,) = _search(_ramp_runs([300.0, 300.0, 300.0], [1.0, 1.0, 1.0], seed=5,
+                              dt_error_c=0.3)).unexplained
+    assert u.gain > 1.5
+    assert {u.variable, *u.not_told_from} >= {"delta_t_c", "temperature_c"}
+    assert all(u.gain / g < 1.10 for g in u.not_told_from.values())  # within the margin
     assert "not resolvable at this readout" in u.evidence
     assert u.to_dict()["params"]["not_told_from"] == dict(u.not_told_from)
+    # with σ = 0.15 °C the ΔT spline, at the knot count chosen held out (12; round 12),
+    # gains ×2.27 against T's ×1.80: beyond the margin, so the runs do tell them apart
+    (v,) = _search(_ramp_runs([300.0, 300.0, 300.0], [1.0, 1.0, 1.0], seed=5)).unexplained
+    assert v.variable == "delta_t_c" and len(v.knots) == 12 and v.not_told_from == {}
 
 
 def test_a_structure_the_runs_tell_apart_names_its_variable_alone() -> None:
