@@ -62,10 +62,17 @@ def catalogued_rivals(
     return out
 
 
-def rival_text(rivals: Mapping[str, float]) -> str:
-    """The evidence's clause for a finding's rivals ("" when none)."""
+def listing(rivals: Mapping[str, float], *, each: str, what: str, said: str) -> str:
+    """An evidence clause "; not told apart from {what}{name} (×gain {each}), …: {said}"
+    ("" when ``rivals`` is empty): the form both kinds of rival are stated in."""
     if not rivals:
         return ""
-    alts = ", ".join(f"{e} (×{g:.3f} alone held out)" for e, g in sorted(rivals.items()))
-    return (f"; not told apart from {alts}: which of them it is is not resolvable at this "
-            "readout (the runs move T, ΔT and time together)")
+    alts = ", ".join(f"{name} (×{g:.3f} {each})" for name, g in sorted(rivals.items()))
+    return f"; not told apart from {what}{alts}: {said}"
+
+
+def rival_text(rivals: Mapping[str, float]) -> str:
+    """The evidence's clause for a finding's rivals ("" when none)."""
+    return listing(rivals, each="alone held out", what="",
+                   said="which of them it is is not resolvable at this readout (the runs "
+                        "move T, ΔT and time together)")

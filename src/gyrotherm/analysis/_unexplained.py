@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from gyrotherm.analysis._catalogued_rivals import listing
 from gyrotherm.analysis._effects import TAU_GRIDS, design
 from gyrotherm.analysis._prep import Prepared
 from gyrotherm.analysis._score import Evaluation, Selector, integrated_time, sse
@@ -373,8 +374,6 @@ def _rivals(
 
 
 def _rival_text(rival: Mapping[str, float]) -> str:
-    if not rival:
-        return ""
-    alts = ", ".join(f"{w} (×{g:.3f} held out in its place)" for w, g in sorted(rival.items()))
-    return (f"; not told apart from a structure in {alts}: which variable it is in is "
-            "not resolvable at this readout (the runs move them together)")
+    return listing(rival, each="held out in its place", what="a structure in ",
+                   said="which variable it is in is not resolvable at this readout (the runs "
+                        "move them together)")
