@@ -28,7 +28,6 @@ It changes no finding and no model: it is a statement beside the name (round 12 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Collection, Mapping
 
 from gyrotherm.analysis._score import Evaluation
@@ -41,16 +40,11 @@ def catalogued_rivals(
     """For each effect of ``found``: the effects of ``alone`` (each alone on ``baseline``)
     that are neither found nor ``excluded``, pass the entry criteria and are not beaten by
     it by ×(1 + ``margin``) held out (module docstring), with their held-out gain alone."""
-    from gyrotherm.analysis._select import _compare
+    from gyrotherm.analysis._select import enters
 
-    need = math.ceil(n_runs / 2)
-    candidates = {}
-    for name, ev in alone.items():
-        if name in found or name in excluded:
-            continue
-        ratio, improved, dbic = _compare(baseline, ev)
-        if ratio >= 1.0 + margin and improved >= need and dbic < 0.0:
-            candidates[name] = ev
+    candidates = {name: ev for name, ev in alone.items()
+                  if name not in found and name not in excluded
+                  and enters(baseline, ev, margin=margin, n_runs=n_runs)}
     out: dict[str, dict[str, float]] = {}
     for name in found:
         if name not in alone:

@@ -345,7 +345,7 @@ def diagnose(
         ))
         if rival:
             notes.append(f"{name}: which catalogued effect it is is not resolvable at this "
-                         f"readout: {' or '.join(sorted(rival))} does as well alone held out")
+                         f"readout: {findings[-1].rivals} does as well alone held out")
             say(notes[-1])
     def shape_power(name: str, variable: str, n_knots: int, alternative: Columns | None,
                     noise: Noise = "white", /) -> tuple[float, ...]:

@@ -66,6 +66,13 @@ def _compare(before: Evaluation, after: Evaluation) -> tuple[float, int, float]:
     return ratio, improved, delta_bic
 
 
+def enters(before: Evaluation, after: Evaluation, *, margin: float, n_runs: int) -> bool:
+    """The entry criteria: ``after`` over ``before`` held out by ×(1 + ``margin``), better on
+    at least half of the ``n_runs`` left-out runs, and ΔBIC_eff < 0."""
+    ratio, improved, dbic = _compare(before, after)
+    return ratio >= 1.0 + margin and improved >= math.ceil(n_runs / 2) and dbic < 0.0
+
+
 def select(
     selector: Selector,
     *,
@@ -82,11 +89,9 @@ def select(
     current model, :func:`_simplest_best` picks the one to accept.
     """
     say = progress or (lambda _msg: None)
-    need = math.ceil(len(selector.runs) / 2)
 
     def passes(before: Evaluation, after: Evaluation) -> bool:
-        ratio, improved, dbic = _compare(before, after)
-        return ratio >= 1.0 + margin and improved >= need and dbic < 0.0
+        return enters(before, after, margin=margin, n_runs=len(selector.runs))
 
     baseline = selector.evaluate({})
     current = baseline
@@ -148,7 +153,6 @@ def prune(selector: Selector, current: Evaluation, *, margin: float = 0.10
     that no longer earn their place (the entry criteria against the model without them),
     e.g. once an effect they were selected with was left out as not resolvable; the
     model that remains and what was dropped."""
-    need = math.ceil(len(selector.runs) / 2)
     dropped: list[str] = []
     changed = True
     while changed and current.effects:
@@ -156,8 +160,7 @@ def prune(selector: Selector, current: Evaluation, *, margin: float = 0.10
         for name in list(current.effects):
             rest = {k: v for k, v in current.effects.items() if k != name}
             without = _refine_all(selector, selector.evaluate(rest))
-            ratio, improved, dbic = _compare(without, current)
-            if not (ratio >= 1.0 + margin and improved >= need and dbic < 0.0):
+            if not enters(without, current, margin=margin, n_runs=len(selector.runs)):
                 current = without
                 dropped.append(name)
                 changed = True

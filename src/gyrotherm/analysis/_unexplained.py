@@ -283,13 +283,10 @@ def search_unexplained(
     """Greedy: the variable whose spline most improves the held-out RMS of the model
     so far, while one passes the entry criteria (module docstring); then drop the
     catalogued effects the splines make redundant."""
-    from gyrotherm.analysis._select import _compare, _refine_all
-
-    need = math.ceil(len(selector.runs) / 2)
+    from gyrotherm.analysis._select import _compare, _refine_all, enters
 
     def passes(before: Evaluation, after: Evaluation) -> bool:
-        ratio, improved, dbic = _compare(before, after)
-        return ratio >= 1.0 + margin and improved >= need and dbic < 0.0
+        return enters(before, after, margin=margin, n_runs=len(selector.runs))
 
     effects = dict(final.effects)
     current = evaluate_with(selector, effects, [])
