@@ -246,6 +246,8 @@ def _expect(sock: socket.socket, buf: bytes, want: bytes, when: str, where: str,
             chunk = sock.recv(MAX_ITEM_BYTES)
         except TimeoutError:
             continue
+        except ConnectionResetError:  # it closed before reading what we sent: a reset, not EOF
+            chunk = b""
         if not chunk:
             raise BusError(f"{where}: handshake: expected {want.decode()!r} {when}, but the "
                            f"peer closed the connection (received {quote(buf)})")
