@@ -82,8 +82,9 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
     before7 = {*earlier, *sweep.SHAPE_EVAL6_SEEDS, *sweep.NULL_CONFIRM4_SEEDS}
     assert not set(sweep.SHAPE_EVAL7_SEEDS) & before7
     assert not set(sweep.NULL_CONFIRM5_SEEDS) & {*before7, *sweep.SHAPE_EVAL7_SEEDS}
-    # rounds 6b to 12 (three sets for round 12): each round's shape set and null set, fixed
-    # before the round, overlap nothing fixed or used before them (nor each other)
+    # rounds 6b to 13 (three sets for round 12, two for round 13): each round's shape set
+    # and null set, fixed before the round, overlap nothing fixed or used before them (nor
+    # each other)
     before = before7
     for shapes, first, nulls, start in (
             ("SHAPE_EVAL8_SEEDS", 441, "NULL_CONFIRM6_SEEDS", 18001),
@@ -93,7 +94,9 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
             ("SHAPE_EVAL12_SEEDS", 521, "NULL_CONFIRM10_SEEDS", 26001),
             ("SHAPE_EVAL13_SEEDS", 541, "NULL_CONFIRM11_SEEDS", 28001),
             ("SHAPE_EVAL14_SEEDS", 601, "NULL_CONFIRM12_SEEDS", 30001),
-            ("SHAPE_EVAL15_SEEDS", 621, "NULL_CONFIRM13_SEEDS", 32001)):
+            ("SHAPE_EVAL15_SEEDS", 621, "NULL_CONFIRM13_SEEDS", 32001),
+            ("SHAPE_EVAL16_SEEDS", 641, "NULL_CONFIRM14_SEEDS", 34001),
+            ("SHAPE_EVAL17_SEEDS", 661, "NULL_CONFIRM15_SEEDS", 36001)):
         shape_set, null_set = getattr(sweep, shapes), getattr(sweep, nulls)
         assert shape_set == tuple(range(first, first + 5))
         assert null_set == tuple(range(start, start + 600))
