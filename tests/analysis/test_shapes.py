@@ -18,7 +18,7 @@ import pytest
 
 from gyrotherm._errors import ConfigError
 from gyrotherm.analysis import Diagnosis, SynthConfig, diagnose
-from gyrotherm.analysis._where import segments, support_span
+from gyrotherm.analysis._where import segments, significant_runs, support_span
 from gyrotherm.analysis.synth._variants import (
     VariantTruth,
     shape_bias,
@@ -190,6 +190,31 @@ def test_support_span_takes_every_significant_monotone_run() -> None:
     noisy = step + np.array([0, 1, 0, -1, 0, 1, 0, 1, 0, -1, 0, 1]) * 1e-3
     assert support_span(knots, noisy, cov) == (4.0, 7.0)
     assert segments(np.array([0.0, 1.0, 1.0, 0.0, -1.0])) == [(0, 2), (2, 4)]
+
+
+def test_a_wiggle_within_the_noise_is_not_a_turn() -> None:
+    knots = np.arange(12.0)
+    cov = np.eye(12) * 1e-6  # SE of a change between two knots: sqrt(2)·1e-3
+    # a V (|x| about knot 4, 0.01 per interval) with a reversal of 1.2e-3 (z ≈ 0.85) on its
+    # rising side and one of 2.4e-3 (z ≈ 1.7) at its end: five monotone runs; the first
+    # reversal joins its neighbours, the end one is dropped: two runs, knots 0-4 and 4-9,
+    # padded by one interval
+    v = np.abs(knots - 4.0) * 0.01
+    v[7] -= 0.0112  # knot 7 1.2e-3 below knot 6
+    v[10] -= 0.0112  # knot 10 …
+    v[11] = v[10] - 0.0012  # … and 11 below knot 9
+    assert len(segments(v)) == 5
+    assert significant_runs(v, cov) == [(0, 4), (4, 9)]
+    assert support_span(knots, v, cov) == (0.0, 10.0)
+    # a gentle but significant slope beside a steep drop is part of the structure
+    # (a saturating response after the catalogued ΔT term: tanh(x) − a·x)
+    sat = np.array([0.0, 0.01, 0.02, 0.03, 0.04, -0.06, -0.05, -0.04, -0.03, -0.02, -0.01, 0.0])
+    assert significant_runs(sat, cov) == [(0, 4), (4, 5), (5, 11)]
+    assert support_span(knots, sat, cov) == (0.0, 11.0)
+    # nothing significant: the steepest run alone (knots 6-7, 2e-3 in one interval), padded
+    flat = np.array([0, 1, 0, -1, 0, 1, 0, 2, 0, -1, 0, 1]) * 1e-3
+    assert len(significant_runs(flat, cov)) == 1
+    assert support_span(knots, flat, cov) == (5.0, 8.0)
 
 
 CFG = SynthConfig(duration_s=6000.0, rate_hz=10.0)  # the sweep's reference readout

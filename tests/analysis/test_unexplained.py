@@ -274,3 +274,19 @@ def test_a_deployed_correction_not_told_apart_says_so() -> None:
     assert any("not told apart from a structure in delta_t_c" in m for m in said)
     (deployed,) = cal.provenance["diagnosis"]["deployed"]
     assert deployed["params"]["not_told_from"] == dict(u.not_told_from)
+
+
+def test_report_says_where_the_structure_changes_against_the_data_range(
+    step_runs: tuple[list[Run], dict[str, float], Diagnosis],
+) -> None:
+    from dataclasses import replace
+
+    from gyrotherm.analysis._report import _where_line
+
+    (u,) = step_runs[2].unexplained
+    k0, k1 = u.knots[0], u.knots[-1]
+    whole = _where_line(replace(u, where=(k0, k1)))
+    assert whole.endswith("(all of it)") and f"{k0:.4g}" in whole
+    part = _where_line(replace(u, where=(u.knots[2], k1)))
+    assert f"[{u.knots[2]:.4g}, {k1:.4g}] of the data's [{k0:.4g}, {k1:.4g}]" in part
+    assert "within the noise" in part and "all of it" not in part

@@ -33,6 +33,7 @@ from gyrotherm.analysis._figures import (
     plot_residual_vs_time,
     raw_rms,
 )
+from gyrotherm.analysis._unexplained import Unexplained
 
 
 def _fmt(v: float | None) -> str:
@@ -49,6 +50,19 @@ def _z(z: float | None, significant: bool | None) -> str:
     if z is None or not math.isfinite(z):
         return "—"
     return f"**{z:+.1f}**" if significant else f"{z:+.1f}"
+
+
+def _where_line(u: Unexplained) -> str:
+    """Where the structure is, against the data's range: outside ``where`` the correction
+    does not change by 3 standard errors (:mod:`._where`), which is no claim that the
+    structure is absent there."""
+    lo, hi, k0, k1 = u.where[0], u.where[1], u.knots[0], u.knots[-1]
+    text = (f"- where it changes: [{lo:.4g}, {hi:.4g}] of the data's [{k0:.4g}, {k1:.4g}] "
+            f"{u.variable}")
+    if (lo, hi) == (k0, k1):
+        return text + " (all of it)"
+    return text + ("; beyond, its change is within the noise (the data cannot place the "
+                   "structure there, nor rule it out)")
 
 
 def _simulation_section(sim: SimulationComparison, extended_name: str | None) -> list[str]:
@@ -139,7 +153,7 @@ def write_report(d: Diagnosis, directory: str | Path) -> Path:
                   "deployed by --calibration as the axis' `correction` (the first such "
                   "structure; refitted on the vehicle's estimator features)",
                   f"- held-out RMS with the correction: {_fmt(u.heldout_rms_dps)} °/s "
-                  f"(gain {u.gain:.3f})", f"- evidence: {u.evidence}", ""]
+                  f"(gain {u.gain:.3f})", _where_line(u), f"- evidence: {u.evidence}", ""]
     for v in d.not_resolvable:
         lines += ["", f"## {v.effect}: not resolvable at this readout", "",
                   f"- fitted: {', '.join(f'{k} = {_fmt(x)}' for k, x in v.params.items())}",

@@ -25,9 +25,9 @@ bending towards a step) and is dropped.
 The spline reported is fitted to the final model's residuals (two-stage, so
 that the paper's T and T² terms, collinear with the spline, do not share its
 shape). ``where`` = [low, high]: the whole span of v over which it changes
-significantly (:mod:`._where`: every interval whose slope is ≥ 3 standard
-errors and ≥ ¼ of the steepest, first to last, reaching the end of the range
-within one interval); ``steepest``: the knot intervals, contiguous with the
+significantly (:mod:`._where`: its monotone runs, reversals within the noise
+smoothed over, every run whose change is ≥ 3 standard errors, first to last,
+padded by one knot interval); ``steepest``: the knot intervals, contiguous with the
 steepest one, whose slope |Δc/Δv| is at least half the steepest (how sharp the
 structure is, for :mod:`._resolution`). ``gain`` = held-out RMS of the model
 without the correction / with it; the model is the final one (the catalogued effects that

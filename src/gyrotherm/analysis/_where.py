@@ -1,22 +1,27 @@
 """Where an unexplained structure is: all of it, not only its steepest part.
 
-The correction of an unexplained structure (:mod:`._unexplained`) is a linear
-spline c(v) on K knots k_0 < … < k_{K−1} over the runs' 0.5–99.5 % range of its
-variable v, fitted (two-stage) to the final catalogued model's residuals with
-one offset per run. Its level is arbitrary (the offsets hold it), so where the
-structure *is* means where c changes. Single knot intervals are too noisy to
-test one by one (with Gauss–Markov bias noise τ_int is hundreds of 1-s blocks:
-a ×4 held-out gain can have no interval beyond 2.5 standard errors), so c is cut
-into its monotone runs [k_i, k_j] (maximal, a flat interval joining the run
-before it; end intervals flatter than :data:`REL_SLOPE` of the run's steepest
-trimmed off), and a run is part of the structure when
-
-* its change is significant, |c(k_j) − c(k_i)| ≥ :data:`Z_CHANGE` · SE, with SE
-  from the covariance of the spline values, σ²·τ_int·(BᵀB)⁺ (B the hats,
-  centred per run; σ² the residual variance after the spline; τ_int the
-  residuals' integrated autocorrelation time in blocks, as in the selection's
-  n_eff; pseudo-inverse: the constant is not identified, its differences are);
-* and its mean slope is at least :data:`REL_SLOPE` of the steepest run's.
+The correction of an unexplained structure (:mod:`._unexplained`) is a linear spline
+c(v) on K knots k_0 < … < k_{K−1} over the runs' 0.5–99.5 % range of its variable v,
+fitted (two-stage) to the final catalogued model's residuals with one offset per run.
+Its level is arbitrary (the offsets hold it), so where the structure *is* means where
+c changes. Single knot intervals are too noisy to test one by one (with Gauss–Markov
+bias noise τ_int is hundreds of 1-s blocks: a ×4 held-out gain can have no interval
+beyond 2.5 standard errors), so c is cut into its monotone runs [k_i, k_j] (maximal, a
+flat interval joining the run before it), and the noise's wiggles are smoothed over
+(:func:`significant_runs`): while the least significant run, one in which no change
+c(k_b) − c(k_a) its way (i ≤ a < b ≤ j) reaches :data:`Z_CHANGE` · SE, lies between
+two others it joins them (they move the same way: a wiggle on a slope is not a turn; a
+V of |ΔT| is two runs, not seven), and at an end it is dropped. SE comes from the
+covariance of the spline values, σ²·τ_int·(BᵀB)⁺ (B the hats, centred per run; σ² the
+residual variance after the spline; τ_int the residuals' integrated autocorrelation
+time in blocks, as in the selection's n_eff; pseudo-inverse: the constant is not
+identified, its differences are). Every run left is significant, and every one is part
+of the structure, however gentle: until round 13 a run also had to be ≥ ¼ as steep as
+the steepest, which cut off what a saturating response asks of the correction beyond
+the knee (the catalogued ΔT terms tilt the saturated sides, and the correction takes
+the tilt back: that is structure the model lacks) and one side of a noisy |ΔT|. Each
+run's end intervals flatter than :data:`REL_SLOPE` of its own steepest are trimmed (a
+step's flat sides join it otherwise).
 
 ``where`` = [first, last] over those runs (a periodic bias: every half-period),
 widened by :data:`PAD_INTERVALS` knot interval on each side within the data's
@@ -25,7 +30,9 @@ step's tails, a peak in the last interval). It is where the correction changes
 the catalogued model's prediction: the paper's T, T² (and ΔT) terms take part
 of a structure (a bias step's best quadratic), so what the correction adds on
 top spans more than the structure's steep part — a step's ``where`` brackets
-the step and may reach far beyond it.
+the step and may reach far beyond it. Outside ``where`` the correction's change is
+within the noise: the data cannot place the structure there, nor rule it out (the
+report says so when ``where`` is short of the data's range).
 The steep part alone (the knot intervals contiguous with the steepest one and
 at least half as steep, :func:`~._unexplained.steepest_span`) is
 ``Unexplained.steepest``: how sharp the structure is, and where a step is;
@@ -46,9 +53,9 @@ FloatArray = NDArray[np.float64]
 
 Z_CHANGE = 3.0
 """A monotone run is part of the structure when its change is this many standard errors
-from zero …"""
+from zero; a smaller reversal between two runs is a wiggle and joins them."""
 REL_SLOPE = 0.25
-"""… and its mean slope at least this share of the steepest run's."""
+"""A run's end intervals flatter than this share of its steepest interval are trimmed."""
 PAD_INTERVALS = 1
 """Knot intervals added on each side: a hat is two intervals wide, so the spline places a
 boundary no finer than one (a step's tails, a peak in the last interval)."""
@@ -95,22 +102,49 @@ def _core(knots: FloatArray, values: FloatArray, i: int, j: int) -> tuple[int, i
     return i + int(strong[0]), i + int(strong[-1]) + 1
 
 
+def _z(values: FloatArray, cov: FloatArray, i: int, j: int) -> float:
+    """The largest change of a run [i, j] in its own direction between any two of its
+    knots, in standard errors (SE from ``cov``): the run changes significantly when some
+    part of it does (a longer span can carry a noisier end knot)."""
+    way = 1.0 if values[j] >= values[i] else -1.0
+    best = 0.0
+    for a in range(i, j):
+        for b in range(a + 1, j + 1):
+            c = np.zeros(len(values))
+            c[a], c[b] = -1.0, 1.0
+            se = math.sqrt(max(float(c @ cov @ c), 1e-300))
+            best = max(best, way * float(values[b] - values[a]) / se)
+    return best
+
+
+def significant_runs(values: FloatArray, cov: FloatArray) -> list[tuple[int, int]]:
+    """The monotone runs of ``values`` once reversals within the noise are smoothed over:
+    while the least significant run (no change within it of :data:`Z_CHANGE` · SE its
+    way, :func:`_z`) is inside, it
+    joins its two neighbours (which move the same way: a wiggle on a slope is not a
+    turn); at an end it is dropped. What is left is significant, or one run."""
+    runs = segments(values)
+    while len(runs) > 1:
+        z = [_z(values, cov, i, j) for i, j in runs]
+        n = int(np.argmin(z))
+        if z[n] >= Z_CHANGE:
+            break
+        if n == 0 or n == len(runs) - 1:
+            runs.pop(n)
+        else:
+            runs[n - 1:n + 2] = [(runs[n - 1][0], runs[n + 1][1])]
+    return runs
+
+
 def support_span(knots: FloatArray, values: FloatArray, cov: FloatArray) -> tuple[float, float]:
-    """[low, high] over the monotone runs whose change is significant and whose mean
-    slope is not negligible (module docstring); the steepest run alone when none passes
-    both."""
-    runs = [_core(knots, values, i, j) for i, j in segments(values)]
-    change = np.array([values[j] - values[i] for i, j in runs])
-    se = np.empty(len(runs))
-    for n, (i, j) in enumerate(runs):
-        c = np.zeros(len(values))
-        c[i], c[j] = -1.0, 1.0
-        se[n] = math.sqrt(max(float(c @ cov @ c), 1e-300))
-    slope = np.abs(change) / np.array([knots[j] - knots[i] for i, j in runs])
-    steepest = int(np.argmax(slope))
-    keep = (np.abs(change) >= Z_CHANGE * se) & (slope >= REL_SLOPE * slope[steepest])
-    keep[steepest] = True
-    chosen = [runs[n] for n in np.flatnonzero(keep)]
+    """[low, high] over the significant monotone runs (:func:`significant_runs`; module
+    docstring), the steepest monotone run alone when none is significant."""
+    runs = significant_runs(values, cov)
+    if _z(values, cov, *runs[0]) < Z_CHANGE:  # one run left, and not significant
+        cores = [_core(knots, values, i, j) for i, j in segments(values)]
+        runs = [max(cores, key=lambda r: abs(values[r[1]] - values[r[0]])
+                    / (knots[r[1]] - knots[r[0]]))]
+    chosen = [_core(knots, values, i, j) for i, j in runs]
     first = max(chosen[0][0] - PAD_INTERVALS, 0)
     last = min(chosen[-1][1] + PAD_INTERVALS, len(knots) - 1)
     return float(knots[first]), float(knots[last])
