@@ -6,12 +6,15 @@ before any result was seen."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from gyrotherm.analysis import Diagnosis, SynthConfig, diagnose
 from gyrotherm.analysis._diagnose import export_calibration
 from gyrotherm.analysis._prep import Prepared
+from gyrotherm.analysis._report import _where_line
 from gyrotherm.analysis._score import Selector
 from gyrotherm.analysis._select import _compare
 from gyrotherm.analysis._unexplained import (
@@ -115,8 +118,6 @@ def test_calibration_deploys_the_unexplained_correction_and_records_it(
 def test_no_unexplained_finding_on_clean_data_or_catalogued_effects(
     effects: dict[str, dict[str, float]], seed: int
 ) -> None:
-    from dataclasses import replace
-
     runs, _ = variant_runs(replace(CFG, effects=effects), n_runs=4, seed=seed)
     d = diagnose(runs, simulate=False)
     assert d.unexplained == ()
@@ -279,10 +280,6 @@ def test_a_deployed_correction_not_told_apart_says_so() -> None:
 def test_report_says_where_the_structure_changes_against_the_data_range(
     step_runs: tuple[list[Run], dict[str, float], Diagnosis],
 ) -> None:
-    from dataclasses import replace
-
-    from gyrotherm.analysis._report import _where_line
-
     (u,) = step_runs[2].unexplained
     k0, k1 = u.knots[0], u.knots[-1]
     whole = _where_line(replace(u, where=(k0, k1)))

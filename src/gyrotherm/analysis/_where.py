@@ -41,7 +41,6 @@ at least half as steep, :func:`~._unexplained.steepest_span`) is
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -102,32 +101,36 @@ def _core(knots: FloatArray, values: FloatArray, i: int, j: int) -> tuple[int, i
     return i + int(strong[0]), i + int(strong[-1]) + 1
 
 
-def _z(values: FloatArray, cov: FloatArray, i: int, j: int) -> float:
+def _pair_z(values: FloatArray, cov: FloatArray) -> FloatArray:
+    """z[a, b] = (c(k_b) − c(k_a)) / SE, SE² = cov[a, a] + cov[b, b] − 2·cov[a, b]."""
+    var = np.diag(cov)[:, None] + np.diag(cov)[None, :] - 2.0 * cov
+    diff = values[None, :] - values[:, None]
+    return np.asarray(diff / np.sqrt(np.maximum(var, 1e-300)), dtype=np.float64)
+
+
+def _z(z: FloatArray, values: FloatArray, i: int, j: int) -> float:
     """The largest change of a run [i, j] in its own direction between any two of its
-    knots, in standard errors (SE from ``cov``): the run changes significantly when some
-    part of it does (a longer span can carry a noisier end knot)."""
+    knots, in standard errors (``z`` from :func:`_pair_z`): the run changes significantly
+    when some part of it does (a longer span can carry a noisier end knot)."""
     way = 1.0 if values[j] >= values[i] else -1.0
-    best = 0.0
-    for a in range(i, j):
-        for b in range(a + 1, j + 1):
-            c = np.zeros(len(values))
-            c[a], c[b] = -1.0, 1.0
-            se = math.sqrt(max(float(c @ cov @ c), 1e-300))
-            best = max(best, way * float(values[b] - values[a]) / se)
-    return best
+    return max(0.0, float(np.max(np.triu(way * z[i:j + 1, i:j + 1], 1))))
 
 
 def significant_runs(values: FloatArray, cov: FloatArray) -> list[tuple[int, int]]:
     """The monotone runs of ``values`` once reversals within the noise are smoothed over:
     while the least significant run (no change within it of :data:`Z_CHANGE` · SE its
-    way, :func:`_z`) is inside, it
-    joins its two neighbours (which move the same way: a wiggle on a slope is not a
-    turn); at an end it is dropped. What is left is significant, or one run."""
+    way, :func:`_z`) is inside, it joins its two neighbours (which move the same way: a
+    wiggle on a slope is not a turn); at an end it is dropped. What is left is
+    significant, or one run."""
+    return _smoothed(_pair_z(values, cov), values)
+
+
+def _smoothed(z: FloatArray, values: FloatArray) -> list[tuple[int, int]]:
     runs = segments(values)
     while len(runs) > 1:
-        z = [_z(values, cov, i, j) for i, j in runs]
-        n = int(np.argmin(z))
-        if z[n] >= Z_CHANGE:
+        score = [_z(z, values, i, j) for i, j in runs]
+        n = int(np.argmin(score))
+        if score[n] >= Z_CHANGE:
             break
         if n == 0 or n == len(runs) - 1:
             runs.pop(n)
@@ -139,8 +142,9 @@ def significant_runs(values: FloatArray, cov: FloatArray) -> list[tuple[int, int
 def support_span(knots: FloatArray, values: FloatArray, cov: FloatArray) -> tuple[float, float]:
     """[low, high] over the significant monotone runs (:func:`significant_runs`; module
     docstring), the steepest monotone run alone when none is significant."""
-    runs = significant_runs(values, cov)
-    if _z(values, cov, *runs[0]) < Z_CHANGE:  # one run left, and not significant
+    z = _pair_z(values, cov)
+    runs = _smoothed(z, values)
+    if _z(z, values, *runs[0]) < Z_CHANGE:  # one run left, and not significant
         cores = [_core(knots, values, i, j) for i, j in segments(values)]
         runs = [max(cores, key=lambda r: abs(values[r[1]] - values[r[0]])
                     / (knots[r[1]] - knots[r[0]]))]
