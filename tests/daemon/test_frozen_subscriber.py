@@ -144,10 +144,7 @@ def test_frozen_subscriber_costs_no_watchdog_and_is_counted(tmp_path: Path) -> N
 
 
 def test_sigterm_while_blocked_on_a_publish(tmp_path: Path) -> None:
-    # 45 s of frames, stopped as soon as the daemon blocks (a few seconds on an idle
-    # machine): on a loaded one the daemon reads, and so fills the frozen subscriber's
-    # buffers, more slowly, and 20 s once played out before it blocked
-    frames = _frames(45.0)
+    frames = _frames(20.0)
     notify = NotifyLog(tmp_path / "notify.sock")
     try:
         with SocketcandServer(host="127.0.0.1", port=0) as server:
