@@ -82,7 +82,7 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
     before7 = {*earlier, *sweep.SHAPE_EVAL6_SEEDS, *sweep.NULL_CONFIRM4_SEEDS}
     assert not set(sweep.SHAPE_EVAL7_SEEDS) & before7
     assert not set(sweep.NULL_CONFIRM5_SEEDS) & {*before7, *sweep.SHAPE_EVAL7_SEEDS}
-    # rounds 6b to 13 (three sets for round 12, two for round 13): each round's shape set
+    # rounds 6b to 14 (three sets for round 12, two each for rounds 13 and 14): each round's shape set
     # and null set, fixed before the round, overlap nothing fixed or used before them (nor
     # each other)
     before = before7
@@ -96,7 +96,9 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
             ("SHAPE_EVAL14_SEEDS", 601, "NULL_CONFIRM12_SEEDS", 30001),
             ("SHAPE_EVAL15_SEEDS", 621, "NULL_CONFIRM13_SEEDS", 32001),
             ("SHAPE_EVAL16_SEEDS", 641, "NULL_CONFIRM14_SEEDS", 34001),
-            ("SHAPE_EVAL17_SEEDS", 661, "NULL_CONFIRM15_SEEDS", 36001)):
+            ("SHAPE_EVAL17_SEEDS", 661, "NULL_CONFIRM15_SEEDS", 36001),
+            ("SHAPE_EVAL18_SEEDS", 681, "NULL_CONFIRM16_SEEDS", 38001),
+            ("SHAPE_EVAL19_SEEDS", 701, "NULL_CONFIRM17_SEEDS", 40001)):
         shape_set, null_set = getattr(sweep, shapes), getattr(sweep, nulls)
         assert shape_set == tuple(range(first, first + 5))
         assert null_set == tuple(range(start, start + 600))
