@@ -69,6 +69,8 @@ from gyrotherm.analysis._prep import (
     prepare,
     with_tau,
 )
+from gyrotherm.analysis._rate_width import VARIABLE as TIMING_VARIABLE
+from gyrotherm.analysis._rate_width import rate_width
 from gyrotherm.analysis._resolution import Resolution, placement
 from gyrotherm.analysis._resolve import (
     NULL_REPLAYS,
@@ -303,8 +305,16 @@ def diagnose(
             notes.append(f"{v.effect} not reported as a finding ({v.verdict}): {v.reason}")
             say(notes[-1])
     final_ev = search.catalogued
+    found = list(search.unexplained)
+    timing = rate_width(selector, final_ev.effects,
+                        [(u.variable, np.array(u.knots)) for u in found], margin=margin)
+    if timing is not None:  # the structure in time is the hysteresis' own timing
+        found = [u for u in found if u.variable != TIMING_VARIABLE]
+        notes.append(f"unexplained:{TIMING_VARIABLE} not reported: a hysteresis whose "
+                     "width grows with the rate does as well in its place (hysteresis' note)")
+        say(notes[-1])
     unexplained = []
-    for u in search.unexplained:  # real, but sharper than the readout can place
+    for u in found:  # real, but sharper than the readout can place
         where_note = placement(u, resolution)
         if where_note:
             u = replace(u, evidence=f"{u.evidence}; {where_note}")
@@ -363,6 +373,9 @@ def diagnose(
                           [(u.variable, np.array(u.knots)) for u in unexplained],
                           replay=shape_replay, power=shape_power)
     shapes = dict(checked.differs)
+    if timing is not None:
+        shapes["hysteresis"] = "; ".join(t for t in (timing.note(), shapes.get("hysteresis"))
+                                         if t)
     for name, verdict in checked.unresolved.items():
         if name == "warmup" and warmup_note:  # the second warm-up's own held-out test
             continue                          # says how the shape differs
