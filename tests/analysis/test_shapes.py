@@ -82,9 +82,9 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
     before7 = {*earlier, *sweep.SHAPE_EVAL6_SEEDS, *sweep.NULL_CONFIRM4_SEEDS}
     assert not set(sweep.SHAPE_EVAL7_SEEDS) & before7
     assert not set(sweep.NULL_CONFIRM5_SEEDS) & {*before7, *sweep.SHAPE_EVAL7_SEEDS}
-    # rounds 6b to 14 (three sets for round 12, two each for rounds 13 and 14): each round's shape set
-    # and null set, fixed before the round, overlap nothing fixed or used before them (nor
-    # each other)
+    # rounds 6b to 14 (three sets for round 12, two each for rounds 13 and 14): each
+    # round's shape set and null set, fixed before the round, overlap nothing fixed or used
+    # before them (nor each other)
     before = before7
     for shapes, first, nulls, start in (
             ("SHAPE_EVAL8_SEEDS", 441, "NULL_CONFIRM6_SEEDS", 18001),
