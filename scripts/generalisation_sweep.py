@@ -1,8 +1,8 @@
 """Does the diagnosis generalise beyond the catalogue's exact forms? A seeded sweep.
 
     .venv/bin/python scripts/generalisation_sweep.py
-        [--seeds dev|eval|eval1|shapes-dev|shapes-dev2|shapes-dev3|shapes-eval…shapes-eval19|
-                 null-eval|null-confirm…null-confirm17]
+        [--seeds dev|eval|eval1|shapes-dev|shapes-dev2|shapes-dev3|shapes-eval…shapes-eval21|
+                 null-eval|null-confirm…null-confirm19]
         [--quick] [--conditions I ...] [--cases NAME ...] [--json OUT]
 
 Per case (what is injected) × condition (sample rate, temperature readout, number
@@ -195,6 +195,13 @@ was scored, before any round-14 change and before any result on it; run once."""
 SHAPE_EVAL19_SEEDS = (701, 702, 703, 704, 705)
 """Nineteenth evaluation set for the shapes, fixed with SHAPE_EVAL18_SEEDS: a second fresh
 test of the same method; run once."""
+SHAPE_EVAL20_SEEDS = (721, 722, 723, 724, 725)
+"""Twentieth evaluation set for the shapes, fixed (the commit adding this line, with
+NULL_CONFIRM18_SEEDS, SHAPE_EVAL21_SEEDS and NULL_CONFIRM19_SEEDS) after the nineteenth set
+was scored, before any round-15 change and before any result on it; run once."""
+SHAPE_EVAL21_SEEDS = (741, 742, 743, 744, 745)
+"""Twenty-first evaluation set for the shapes, fixed with SHAPE_EVAL20_SEEDS: a second fresh
+test of the same method; run once."""
 NULL_EVAL_SEEDS = tuple(range(5001, 5801))
 """Null-only evaluation (issue 19 item 1, "nulls at scale"): 800 seeds, fixed (the commit
 adding this line) before any result on them was seen; never used while developing; run
@@ -265,12 +272,18 @@ once. Seed j at CONDITIONS[j % 4]: 150 distinct devices per condition."""
 NULL_CONFIRM17_SEEDS = tuple(range(40001, 40601))
 """Fresh nulls for the same method, fixed with SHAPE_EVAL18_SEEDS; run once. Seed j at
 CONDITIONS[j % 4]: 150 distinct devices per condition."""
+NULL_CONFIRM18_SEEDS = tuple(range(42001, 42601))
+"""Fresh nulls for round 15, fixed with SHAPE_EVAL20_SEEDS before any round-15 change; run
+once. Seed j at CONDITIONS[j % 4]: 150 distinct devices per condition."""
+NULL_CONFIRM19_SEEDS = tuple(range(44001, 44601))
+"""Fresh nulls for the same method, fixed with SHAPE_EVAL20_SEEDS; run once. Seed j at
+CONDITIONS[j % 4]: 150 distinct devices per condition."""
 NULL_SETS = (NULL_EVAL_SEEDS, NULL_CONFIRM_SEEDS, NULL_CONFIRM2_SEEDS, NULL_CONFIRM3_SEEDS,
              NULL_CONFIRM4_SEEDS, NULL_CONFIRM5_SEEDS, NULL_CONFIRM6_SEEDS, NULL_CONFIRM7_SEEDS,
              NULL_CONFIRM8_SEEDS, NULL_CONFIRM9_SEEDS, NULL_CONFIRM10_SEEDS,
              NULL_CONFIRM11_SEEDS, NULL_CONFIRM12_SEEDS, NULL_CONFIRM13_SEEDS,
              NULL_CONFIRM14_SEEDS, NULL_CONFIRM15_SEEDS, NULL_CONFIRM16_SEEDS,
-             NULL_CONFIRM17_SEEDS)
+             NULL_CONFIRM17_SEEDS, NULL_CONFIRM18_SEEDS, NULL_CONFIRM19_SEEDS)
 """Null-only sets: one device per diagnosis, conditions in turn."""
 SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "shapes-dev": SHAPE_DEV_SEEDS, "shapes-eval": SHAPE_EVAL_SEEDS,
@@ -292,7 +305,9 @@ SEED_SETS = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS, "eval1": FIRST_EVAL_SEEDS,
              "shapes-eval16": SHAPE_EVAL16_SEEDS, "null-confirm14": NULL_CONFIRM14_SEEDS,
              "shapes-eval17": SHAPE_EVAL17_SEEDS, "null-confirm15": NULL_CONFIRM15_SEEDS,
              "shapes-eval18": SHAPE_EVAL18_SEEDS, "null-confirm16": NULL_CONFIRM16_SEEDS,
-             "shapes-eval19": SHAPE_EVAL19_SEEDS, "null-confirm17": NULL_CONFIRM17_SEEDS}
+             "shapes-eval19": SHAPE_EVAL19_SEEDS, "null-confirm17": NULL_CONFIRM17_SEEDS,
+             "shapes-eval20": SHAPE_EVAL20_SEEDS, "null-confirm18": NULL_CONFIRM18_SEEDS,
+             "shapes-eval21": SHAPE_EVAL21_SEEDS, "null-confirm19": NULL_CONFIRM19_SEEDS}
 DURATION_S = 6000.0
 STEP_AT_C = 30.0
 CHECKED = {

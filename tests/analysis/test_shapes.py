@@ -82,7 +82,7 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
     before7 = {*earlier, *sweep.SHAPE_EVAL6_SEEDS, *sweep.NULL_CONFIRM4_SEEDS}
     assert not set(sweep.SHAPE_EVAL7_SEEDS) & before7
     assert not set(sweep.NULL_CONFIRM5_SEEDS) & {*before7, *sweep.SHAPE_EVAL7_SEEDS}
-    # rounds 6b to 14 (three sets for round 12, two each for rounds 13 and 14): each
+    # rounds 6b to 15 (three sets for round 12, two each for rounds 13 to 15): each
     # round's shape set and null set, fixed before the round, overlap nothing fixed or used
     # before them (nor each other)
     before = before7
@@ -98,7 +98,9 @@ def test_shape_eval_seeds_are_fixed_and_disjoint(sweep: ModuleType) -> None:
             ("SHAPE_EVAL16_SEEDS", 641, "NULL_CONFIRM14_SEEDS", 34001),
             ("SHAPE_EVAL17_SEEDS", 661, "NULL_CONFIRM15_SEEDS", 36001),
             ("SHAPE_EVAL18_SEEDS", 681, "NULL_CONFIRM16_SEEDS", 38001),
-            ("SHAPE_EVAL19_SEEDS", 701, "NULL_CONFIRM17_SEEDS", 40001)):
+            ("SHAPE_EVAL19_SEEDS", 701, "NULL_CONFIRM17_SEEDS", 40001),
+            ("SHAPE_EVAL20_SEEDS", 721, "NULL_CONFIRM18_SEEDS", 42001),
+            ("SHAPE_EVAL21_SEEDS", 741, "NULL_CONFIRM19_SEEDS", 44001)):
         shape_set, null_set = getattr(sweep, shapes), getattr(sweep, nulls)
         assert shape_set == tuple(range(first, first + 5))
         assert null_set == tuple(range(start, start + 600))
