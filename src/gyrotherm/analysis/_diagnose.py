@@ -80,6 +80,7 @@ from gyrotherm.analysis._resolve import (
     lag_limit,
     readout_structure,
 )
+from gyrotherm.analysis._rival_power import readout_rivals
 from gyrotherm.analysis._score import Evaluation, Selector
 from gyrotherm.analysis._select import Selection, prune, select
 from gyrotherm.analysis._separable import (
@@ -296,9 +297,14 @@ def diagnose(
         search = search_unexplained(selector, final_ev, margin=margin, variables=variables)
         too_fine = [v for v in (readout_structure(  # more than the readout alone gives?
             selector, search.catalogued.effects, u, limit, readouts, margin=margin,
-            seed=seed, unresolved=unresolved) for u in search.unexplained) if v]
+            seed=seed, unresolved=unresolved,
+            others=[w for w in search.unexplained if w is not u])
+            for u in search.unexplained) if v]
         if not too_fine:
             break
+        if len(search.unexplained) > 1:  # each one's null holds the others: leave out the
+            # one furthest below its null, then search again without it
+            too_fine = [min(too_fine, key=lambda v: v.params["gain"] / v.params["null_gain"])]
         for v in too_fine:
             verdicts = (*verdicts, v)
             variables.remove(v.effect.split(":", 1)[1])
@@ -313,6 +319,10 @@ def diagnose(
         notes.append(f"unexplained:{TIMING_VARIABLE} not reported: a hysteresis whose "
                      "width grows with the rate does as well in its place (hysteresis' note)")
         say(notes[-1])
+    # a variable the runs prefer to another's only as this readout would: not told apart
+    found = readout_rivals(selector, final_ev.effects, found, variables, readouts,
+                           limit.lsb_crossing_s, margin=margin, seed=seed,
+                           replays=NULL_REPLAYS, unresolved=unresolved)
     unexplained = []
     for u in found:  # real, but sharper than the readout can place
         where_note = placement(u, resolution)

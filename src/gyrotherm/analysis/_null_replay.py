@@ -206,20 +206,9 @@ def _alternative(
             true_sel.residuals(full.effects, full.coefficients))
 
 
-def _null_selectors(
-    selector: Selector, rest: dict[str, float], readouts: Sequence[Readout], crossing_s: float,
-    *, seed: int, replays: int, unresolved: Mapping[str, float] | None = None,
-    alternative: Alternative | None = None, noise: Noise = "white",
-) -> Iterator[Selector]:
-    """``replays`` readout replays of the runs with the model ``rest`` (module docstring,
-    steps 1–3), each as a selector on the replayed runs; ``unresolved`` effects (name →
-    nonlinear parameter) are added to the generating model where ``rest`` lacks them;
-    ``alternative``: its shape of the same size as its effect is added (:class:`Alternative`);
-    ``noise``: the replayed rate's noise (:data:`Noise`)."""
-    from gyrotherm.analysis._select import _refine_all
-
-    rest = {**(unresolved or {}), **rest}
-
+def step_free_selector(selector: Selector, crossing_s: float) -> tuple[Selector, float]:
+    """The runs on their step-free temperature (step 1 of the module docstring; ΔT = τ·dT/dt
+    of it, with the runs' τ) as a selector, and that τ (s)."""
     tau = float(np.median([np.median(p.delta_t_c[p.rate_c_per_s != 0]
                                      / p.rate_c_per_s[p.rate_c_per_s != 0])
                            for p in selector.runs]))
@@ -228,7 +217,55 @@ def _null_selectors(
     for p, t in zip(selector.runs, truths, strict=True):
         rate = np.gradient(t, p.time_s)
         true_runs.append(replace(p, temperature_c=t, rate_c_per_s=rate, delta_t_c=tau * rate))
-    true_sel = Selector(true_runs, selector.scaling)
+    return Selector(true_runs, selector.scaling), tau
+
+
+def _with_splines(
+    true_sel: Selector, effects: Mapping[str, float], splines: Sequence[tuple[str, FloatArray]]
+) -> tuple[FloatArray, list[FloatArray], float, list[FloatArray]]:
+    """The generating model ``effects`` plus the linear ``splines`` (variable, knots) fitted
+    jointly on the step-free runs (:func:`~._unexplained.evaluate_with`, one offset per
+    run): the effects' column coefficients, the splines' sum per run (°/s), the residuals'
+    spread (°/s) and the residuals per run (°/s)."""
+    from gyrotherm.analysis._unexplained import evaluate_with, hats, variable
+
+    ev = evaluate_with(true_sel, effects, splines)
+    n_model = len(ev.columns) - sum(len(k) - 1 for _, k in splines)
+    extra, residuals = [], []
+    for p in true_sel.runs:
+        _, x = design(p.time_s, p.temperature_c, p.delta_t_c, true_sel.scaling, effects)
+        add = np.zeros(len(p))
+        start = n_model
+        for v, k in splines:
+            add += hats(variable(p, v), k)[:, 1:] @ ev.coefficients[start: start + len(k) - 1]
+            start += len(k) - 1
+        extra.append(add)
+        fit = x @ ev.coefficients[:n_model] + add
+        r = (p.rate_dps - fit) - float(np.mean(p.rate_dps - fit))
+        residuals.append(np.asarray(r, dtype=np.float64))
+    return (np.asarray(ev.coefficients[:n_model], dtype=np.float64), extra,
+            float(np.sqrt(ev.rss / ev.n)), residuals)
+
+
+def _null_selectors(
+    selector: Selector, rest: dict[str, float], readouts: Sequence[Readout], crossing_s: float,
+    *, seed: int, replays: int, unresolved: Mapping[str, float] | None = None,
+    alternative: Alternative | None = None, noise: Noise = "white",
+    splines: Sequence[tuple[str, FloatArray]] = (),
+) -> Iterator[Selector]:
+    """``replays`` readout replays of the runs with the model ``rest`` (module docstring,
+    steps 1–3), each as a selector on the replayed runs; ``unresolved`` effects (name →
+    nonlinear parameter) are added to the generating model where ``rest`` lacks them;
+    ``alternative``: its shape of the same size as its effect is added (:class:`Alternative`);
+    ``noise``: the replayed rate's noise (:data:`Noise`); ``splines`` (variable, knots):
+    unexplained structures in the generating model, each a linear spline in the step-free
+    runs' own variable (T, ΔT = τ·dT/dt of the step-free temperature, or time), fitted with
+    the model on the step-free runs (:func:`_with_splines`; not with ``alternative``)."""
+    from gyrotherm.analysis._select import _refine_all
+
+    rest = {**(unresolved or {}), **rest}
+    true_sel, tau = step_free_selector(selector, crossing_s)
+    true_runs = true_sel.runs
     extra = [np.zeros(len(p)) for p in true_runs]
     if alternative is None:
         model = _refine_all(true_sel, true_sel.evaluate(rest))
@@ -236,6 +273,10 @@ def _null_selectors(
         sd_dps = float(np.sqrt(model.rss / model.n))
         residuals = (true_sel.residuals(model.effects, model.coefficients)
                      if noise == "coloured" else [])
+        if splines:
+            coefficients, extra, sd_dps, residuals = _with_splines(true_sel, effects, splines)
+    elif splines:
+        raise ValueError("_null_selectors: splines with an alternative are not supported")
     else:
         effects, coefficients, extra, sd_dps, residuals = _alternative(true_sel, rest,
                                                                        alternative)
@@ -284,6 +325,7 @@ def replay_spline(
     selector: Selector, effects: dict[str, float], readouts: Sequence[Readout],
     crossing_s: float, variable: str, *, seed: int = 0, replays: int = 2,
     unresolved: Mapping[str, float] | None = None,
+    others: Sequence[tuple[str, FloatArray]] = (),
 ) -> tuple[tuple[float, ...], str]:
     """Null held-out gains of an unexplained spline in ``variable`` (:mod:`._unexplained`)
     on readout replays of the model ``effects`` without it: on each replay the best
@@ -295,9 +337,19 @@ def replay_spline(
     step-free temperature, but not in the model fitted to the replays, as on the runs:
     the null is then what the readout gives plus what the data could not resolve, so a
     spline that only stands in for a left-out hysteresis, lag or drift is not reported
-    in its place."""
+    in its place.
+
+    ``others`` (variable, knots): the other unexplained structures found beside it. They
+    are in the replays' generating model, each a spline in the step-free runs' own variable
+    at its size fitted there (:func:`_with_splines`), and in the model fitted to the
+    replays, each a spline of the same knot count in the replay's estimated variable, as on
+    the runs, where the structure's gain is over the model with them (round 15 of issue 19:
+    a structure in ΔT read through a 1 °C readout is fitted in an estimated ΔT that lags and
+    smears the true one; what its spline then leaves follows the temperature profile, which
+    every run repeats at the same times since power-on, and a spline in time took it)."""
     gains, how = replay_splines(selector, effects, readouts, crossing_s, (variable,),
-                                seed=seed, replays=replays, unresolved=unresolved)
+                                seed=seed, replays=replays, unresolved=unresolved,
+                                others=others)
     return gains[variable], how
 
 
@@ -305,21 +357,23 @@ def replay_splines(
     selector: Selector, effects: dict[str, float], readouts: Sequence[Readout],
     crossing_s: float, variables: Sequence[str], *, seed: int = 0, replays: int = 2,
     unresolved: Mapping[str, float] | None = None,
+    others: Sequence[tuple[str, FloatArray]] = (),
 ) -> tuple[dict[str, tuple[float, ...]], str]:
     """:func:`replay_spline` for each of ``variables`` on the same replays (the replays
     depend on ``seed``, not on the variable, so each variable's gains are those
     :func:`replay_spline` gives it alone)."""
-    from gyrotherm.analysis._unexplained import evaluate_with, spline_knots
+    from gyrotherm.analysis._unexplained import evaluate_with, knots_for, spline_knots
 
     _, how = step_free(selector.runs, crossing_s)
     gains: dict[str, list[float]] = {v: [] for v in variables}
     for null_sel in _null_selectors(selector, dict(effects), readouts, crossing_s, seed=seed,
-                                    replays=replays, unresolved=unresolved):
-        before = evaluate_with(null_sel, effects, [])
+                                    replays=replays, unresolved=unresolved, splines=others):
+        fitted = [(w, knots_for(null_sel.runs, w, len(k))) for w, k in others]
+        before = evaluate_with(null_sel, effects, fitted)
         for variable in variables:
-            knots = spline_knots(null_sel, effects, [], variable, before)  # as the search does
+            knots = spline_knots(null_sel, effects, fitted, variable, before)  # as the search
             trials = [evaluate_with(null_sel, {k: v for k, v in effects.items() if k != name},
-                                    [(variable, knots)]) for name in ("", *effects)]
+                                    [*fitted, (variable, knots)]) for name in ("", *effects)]
             gains[variable].append(before.heldout_rms_dps
                                    / min(t.heldout_rms_dps for t in trials))
     return {v: tuple(g) for v, g in gains.items()}, how

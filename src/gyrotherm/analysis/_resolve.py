@@ -212,7 +212,7 @@ def drop_readout_hysteresis(
 def readout_structure(
     selector: Selector, effects: Mapping[str, float], u: Unexplained, limit: LagLimit,
     readouts: Sequence[Readout], *, margin: float = 0.10, seed: int = 0,
-    unresolved: Mapping[str, float] | None = None,
+    unresolved: Mapping[str, float] | None = None, others: Sequence[Unexplained] = (),
 ) -> NotResolvable | None:
     """The verdict for the unexplained structure ``u`` found on top of the model
     ``effects`` when its held-out gain is not ``margin`` above what :data:`NULL_REPLAYS`
@@ -221,10 +221,13 @@ def readout_structure(
     terms misfit the staircase, and what they leave follows the profile, which every
     run repeats at the same times since power-on; else None. ``unresolved``: the effects
     left out as not resolvable, in the replays' generating model
-    (:func:`~._null_replay.replay_spline`)."""
+    (:func:`~._null_replay.replay_spline`). ``others``: the other structures found beside
+    ``u``, in the replays' generating model and in the model fitted to them, as on the runs
+    (:func:`~._null_replay.replay_spline`'s ``others``)."""
     gains, how = replay_spline(selector, dict(effects), readouts, limit.lsb_crossing_s,
                                u.variable, seed=seed, replays=NULL_REPLAYS,
-                               unresolved=unresolved)
+                               unresolved=unresolved,
+                               others=[(w.variable, np.array(w.knots)) for w in others])
     null = max(gains)
     if u.gain >= (1.0 + margin) * null:
         return None
@@ -234,6 +237,9 @@ def readout_structure(
               f"from the {how}) on the model without it"
               + (f", {' and '.join(sorted(unresolved))} (left out by a verdict above) "
                  "included," if unresolved else "")
+              + (f" with the structure{'s' if len(others) > 1 else ''} in "
+                 f"{' and '.join(w.variable for w in others)} found beside it,"
+                 if others else "")
               + " already give a spline in "
               f"{u.variable} ×{null:.3f}: not ×{1.0 + margin:.2f} above what the readout "
               "alone produces")
