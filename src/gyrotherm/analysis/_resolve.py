@@ -223,11 +223,17 @@ def readout_structure(
     left out as not resolvable, in the replays' generating model
     (:func:`~._null_replay.replay_spline`). ``others``: the other structures found beside
     ``u``, in the replays' generating model and in the model fitted to them, as on the runs
-    (:func:`~._null_replay.replay_spline`'s ``others``)."""
+    (:func:`~._null_replay.replay_spline`'s ``others``); the null is then the larger of the
+    replays' with them and without them, so they can only make the verdict stricter."""
     gains, how = replay_spline(selector, dict(effects), readouts, limit.lsb_crossing_s,
                                u.variable, seed=seed, replays=NULL_REPLAYS,
-                               unresolved=unresolved,
-                               others=[(w.variable, np.array(w.knots)) for w in others])
+                               unresolved=unresolved)
+    if others:
+        beside, _ = replay_spline(selector, dict(effects), readouts, limit.lsb_crossing_s,
+                                  u.variable, seed=seed, replays=NULL_REPLAYS,
+                                  unresolved=unresolved,
+                                  others=[(w.variable, np.array(w.knots)) for w in others])
+        gains = (*gains, *beside)
     null = max(gains)
     if u.gain >= (1.0 + margin) * null:
         return None
@@ -237,8 +243,8 @@ def readout_structure(
               f"from the {how}) on the model without it"
               + (f", {' and '.join(sorted(unresolved))} (left out by a verdict above) "
                  "included," if unresolved else "")
-              + (f" with the structure{'s' if len(others) > 1 else ''} in "
-                 f"{' and '.join(w.variable for w in others)} found beside it,"
+              + (f" (and with the structure{'s' if len(others) > 1 else ''} in "
+                 f"{' and '.join(w.variable for w in others)} found beside it)"
                  if others else "")
               + " already give a spline in "
               f"{u.variable} ×{null:.3f}: not ×{1.0 + margin:.2f} above what the readout "
