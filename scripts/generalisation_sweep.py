@@ -41,7 +41,9 @@ Scoring against the injected truth:
   from round 12 on (SHAPE_EVAL14_SEEDS) likewise a catalogued finding whose
   ``not_told_from`` names the expected catalogued effect (another effect does as well alone
   held out, :mod:`gyrotherm.analysis._catalogued_rivals`): a declared miss, not a false
-  alarm, unless the expected effect is found as well;
+  alarm, unless the expected effect is found as well; from round 15 on (SHAPE_EVAL20_SEEDS)
+  likewise an ``unexplained`` finding whose ``effects_not_told_from`` names the expected
+  catalogued effect (:mod:`gyrotherm.analysis._rival_power`);
 * **parameter error**: |estimate / truth − 1| of each found effect's checked
   parameter (the hidden-effect tests' list); for the wide hysteresis the
   amplitude, for the warm-ups the amplitude at power-on (A₁ + A₂; A/(1 + e^(−t½/s))).
@@ -439,8 +441,9 @@ def run_case(case: Case, cond: Condition, seed: int) -> dict[str, Any]:
         if u.variable in case.allowed_unexplained:
             allowed.append(u.variable)
             continue
-        rival = [e for e in case.expected if e.startswith("unexplained:")
-                 and e.split(":", 1)[1] in u.not_told_from]
+        rival = [e for e in case.expected
+                 if (e.split(":", 1)[1] in u.not_told_from if e.startswith("unexplained:")
+                     else e in u.effects_not_told_from)]  # the latter from round 15 on
         if rival:  # named in another variable, the expected one stated as not told apart
             stated.append((rival, f"unexplained:{u.variable}[{lo:.3g}, {hi:.3g}]"))
             continue
@@ -491,7 +494,8 @@ def run_case(case: Case, cond: Condition, seed: int) -> dict[str, Any]:
         "named": [{"name": f.effect + (" (shape differs)" if f.shape else ""),
                    "gain": f.gain, "shape": f.shape} for f in d.findings]
         + [{"name": f"unexplained:{u.variable}", "gain": u.gain, "where": list(u.where),
-            "not_told_from": dict(u.not_told_from)} for u in d.unexplained],
+            "not_told_from": dict(u.not_told_from),
+            "effects_not_told_from": dict(u.effects_not_told_from)} for u in d.unexplained],
         "where_coverage": coverage,
         "not_resolvable": not_resolvable,
         "missed_not_resolvable": sorted(((expected - names) & set(not_resolvable))

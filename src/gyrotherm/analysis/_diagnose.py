@@ -322,7 +322,8 @@ def diagnose(
     # a variable the runs prefer to another's only as this readout would: not told apart
     found = readout_rivals(selector, final_ev.effects, found, variables, readouts,
                            limit.lsb_crossing_s, margin=margin, seed=seed,
-                           replays=NULL_REPLAYS, unresolved=unresolved)
+                           replays=NULL_REPLAYS, unresolved=unresolved,
+                           excluded=[v.effect for v in verdicts if v.effect in EFFECTS])
     unexplained = []
     for u in found:  # real, but sharper than the readout can place
         where_note = placement(u, resolution)
@@ -333,7 +334,13 @@ def diagnose(
         if u.not_told_from:  # another variable's spline does as well in its place
             notes.append(f"unexplained:{u.variable}: which variable it is in is not "
                          "resolvable at this readout: a structure in "
-                         f"{u.rivals} does as well held out")
+                         f"{u.rivals} does as well held out, or as well as this readout "
+                         "lets it")
+            say(notes[-1])
+        if u.effects_not_told_from:  # a catalogued effect in its place
+            notes.append(f"unexplained:{u.variable}: whether it is a catalogued effect is "
+                         f"not resolvable at this readout: a {u.effect_rivals} in its place "
+                         "does as well held out, or as well as this readout lets it")
             say(notes[-1])
         unexplained.append(u)
     if search.dropped:
@@ -477,12 +484,14 @@ def export_calibration(
         "not_deployed": [u.to_dict() for u in diagnosis.unexplained[1:]],
         "runs": [{"name": r.name, "source": r.source, "sha256": r.sha256} for r in runs]}}
     # the first unexplained structure (the largest gain) becomes the axis' correction
-    if diagnosis.unexplained and diagnosis.unexplained[0].not_told_from:
+    if diagnosis.unexplained and (diagnosis.unexplained[0].not_told_from
+                                  or diagnosis.unexplained[0].effects_not_told_from):
         u = diagnosis.unexplained[0]
-        say(f"the correction in {u.variable} is not told apart from a structure in "
-            f"{u.rivals} in these runs (they move together): "
-            f"on a vehicle where they do not, it may not hold; runs with other temperature "
-            f"profiles would tell them apart")
+        alike = " or ".join(t for t in (u.rivals and f"a structure in {u.rivals}",
+                                        u.effect_rivals and f"a {u.effect_rivals}") if t)
+        say(f"the correction in {u.variable} is not told apart from {alike} in these runs "
+            f"(they move together): on a vehicle where they do not, it may not hold; runs "
+            f"with other temperature profiles would tell them apart")
     corrections = ({diagnosis.axis: diagnosis.unexplained[0].variable}
                    if diagnosis.unexplained else None)
     knots = ({diagnosis.axis: len(diagnosis.unexplained[0].knots)}

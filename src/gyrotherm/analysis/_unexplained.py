@@ -85,18 +85,30 @@ class Unexplained:
     not_told_from: Mapping[str, float] = field(default_factory=dict)
     """Other variables whose spline in this one's place also passes the entry criteria and
     is not beaten by ×(1 + margin) held out (variable → its held-out gain): which of them
-    the structure is in is not resolvable at this readout (:func:`search_unexplained`)."""
+    the structure is in is not resolvable at this readout (:func:`search_unexplained`;
+    extended by :mod:`._rival_power`: a variable the runs prefer to it only as much as this
+    readout would if the structure were in that variable)."""
+    effects_not_told_from: Mapping[str, float] = field(default_factory=dict)
+    """Catalogued effects (not in the model, not left out by a verdict) that do as well in
+    its place, or that the runs do not tell from it at this readout (:mod:`._rival_power`;
+    effect → its held-out gain in the structure's place)."""
 
     @property
     def rivals(self) -> str:
         """``not_told_from``'s variables, "delta_t_c or temperature_c" ("" when none)."""
         return " or ".join(sorted(self.not_told_from))
 
+    @property
+    def effect_rivals(self) -> str:
+        """``effects_not_told_from``'s effects, "cubic or hysteresis" ("" when none)."""
+        return " or ".join(sorted(self.effects_not_told_from))
+
     def to_dict(self) -> dict[str, Any]:
         return {"effect": "unexplained",
                 "params": {"variable": self.variable, "where": list(self.where),
                            "steepest": list(self.steepest),
-                           "not_told_from": dict(self.not_told_from)},
+                           "not_told_from": dict(self.not_told_from),
+                           "not_told_from_effects": dict(self.effects_not_told_from)},
                 "gain": self.gain, "heldout_rms_dps": self.heldout_rms_dps,
                 "evidence": self.evidence,
                 "correction": {"kind": "linear spline", "knots": list(self.knots),
