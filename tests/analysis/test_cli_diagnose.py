@@ -119,7 +119,7 @@ def test_the_summary_names_an_unexplained_structure_and_its_caveat(
     (u,) = data["findings"]
     assert u["params"]["variable"] == "time_since_power_on_s"
     assert (f"diagnose: found unexplained in time_since_power_on_s (gain {u['gain']:.2f}; "
-            "not told apart from delta_t_c)") in err
+            "not told apart from a structure in delta_t_c") in err
 
 
 def test_the_summary_says_when_a_findings_shape_is_not_resolvable(

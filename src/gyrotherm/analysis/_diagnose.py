@@ -339,7 +339,7 @@ def diagnose(
             say(notes[-1])
         if u.effects_not_told_from:  # a catalogued effect in its place
             notes.append(f"unexplained:{u.variable}: whether it is a catalogued effect is "
-                         f"not resolvable at this readout: a {u.effect_rivals} in its place "
+                         f"not resolvable at this readout: {u.effect_rivals} in its place "
                          "does as well held out, or as well as this readout lets it")
             say(notes[-1])
         unexplained.append(u)
@@ -487,9 +487,7 @@ def export_calibration(
     if diagnosis.unexplained and (diagnosis.unexplained[0].not_told_from
                                   or diagnosis.unexplained[0].effects_not_told_from):
         u = diagnosis.unexplained[0]
-        alike = " or ".join(t for t in (u.rivals and f"a structure in {u.rivals}",
-                                        u.effect_rivals and f"a {u.effect_rivals}") if t)
-        say(f"the correction in {u.variable} is not told apart from {alike} in these runs "
+        say(f"the correction in {u.variable} is not told apart from {u.alike} in these runs "
             f"(they move together): on a vehicle where they do not, it may not hold; runs "
             f"with other temperature profiles would tell them apart")
     corrections = ({diagnosis.axis: diagnosis.unexplained[0].variable}

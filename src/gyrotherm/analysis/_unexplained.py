@@ -100,8 +100,14 @@ class Unexplained:
 
     @property
     def effect_rivals(self) -> str:
-        """``effects_not_told_from``'s effects, "cubic or hysteresis" ("" when none)."""
-        return " or ".join(sorted(self.effects_not_told_from))
+        """``effects_not_told_from``'s effects, "a cubic or a hysteresis" ("" when none)."""
+        return " or ".join(f"a {e}" for e in sorted(self.effects_not_told_from))
+
+    @property
+    def alike(self) -> str:
+        """Every rival, "a structure in delta_t_c or a hysteresis" ("" when none)."""
+        return " or ".join(t for t in (self.rivals and f"a structure in {self.rivals}",
+                                       self.effect_rivals) if t)
 
     def to_dict(self) -> dict[str, Any]:
         return {"effect": "unexplained",

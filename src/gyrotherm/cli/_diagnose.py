@@ -128,9 +128,7 @@ def _found(result: Any) -> str:
             said.append(f"not told apart from {f.rivals}")
         items.append(f"{f.effect} ({'; '.join(said)})")
     for u in result.unexplained:
-        alike = " or ".join(t for t in (u.rivals, u.effect_rivals and f"a {u.effect_rivals}")
-                            if t)
-        said = [f"gain {u.gain:.2f}"] + ([f"not told apart from {alike}"] if alike else [])
+        said = [f"gain {u.gain:.2f}"] + ([f"not told apart from {u.alike}"] if u.alike else [])
         items.append(f"unexplained in {u.variable} ({'; '.join(said)})")
     return ", ".join(items) or "nothing"
 
