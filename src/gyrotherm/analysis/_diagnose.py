@@ -18,7 +18,9 @@
    (:func:`~._select.prune`); test residual structure no catalogued effect
    explains (:mod:`._unexplained`: a spline in T, ΔT or time since power-on,
    reported as an ``unexplained`` finding, not part of the extended model; one
-   another variable's spline does as well in its place names it, ``not_told_from``; one
+   another variable's spline does as well in its place names it, ``not_told_from``, and
+   so does a variable or catalogued effect the runs prefer it to no more than this readout
+   would if the structure were in it (:mod:`._rival_power`); one
    no better than readout replays without it give is a verdict, :mod:`._resolve`, and
    one sharper than the readout can place gets a note saying so, :mod:`._resolution`; a
    catalogued finding whose "shape differs" note the readout alone would produce keeps its
