@@ -699,7 +699,8 @@ def _totals(rows: Sequence[dict[str, Any]]) -> list[str]:
         f"{sum(len(r.get('proxy_shape_unresolved', [])) for r in rows)}; a structure "
         f"named in another variable, stated as not told apart from the expected one, no "
         f"verdict: {sum(len(r.get('variable_unresolved', [])) for r in rows)}; a catalogued "
-        f"effect named, stated as not told apart from the expected one: "
+        f"effect or a structure named, stated as not told apart from the expected catalogued "
+        f"effect: "
         f"{sum(len(r.get('effect_unresolved', [])) for r in rows)})",
         f"- a note that the shape differs on a case that injects the catalogue's exact "
         f"formula: {sum(len(r.get('exact_form_shape_notes', [])) for r in rows)} of "
