@@ -270,11 +270,12 @@ def _null_selectors(
     if alternative is None:
         model = _refine_all(true_sel, true_sel.evaluate(rest))
         effects, coefficients = dict(model.effects), model.coefficients
-        sd_dps = float(np.sqrt(model.rss / model.n))
-        residuals = (true_sel.residuals(model.effects, model.coefficients)
-                     if noise == "coloured" else [])
-        if splines:
+        if splines:  # the structures fitted with the model: its spread and residuals
             coefficients, extra, sd_dps, residuals = _with_splines(true_sel, effects, splines)
+        else:
+            sd_dps = float(np.sqrt(model.rss / model.n))
+            residuals = (true_sel.residuals(model.effects, model.coefficients)
+                         if noise == "coloured" else [])
     elif splines:
         raise ValueError("_null_selectors: splines with an alternative are not supported")
     else:
